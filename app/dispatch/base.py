@@ -1,0 +1,29 @@
+"""The dispatcher interface the API uses to hand a stored job to a worker."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from worker.limits import TimeLimits
+
+
+class Dispatcher(Protocol):
+    """Sends job ids to workers; the job itself is read from the database by the worker."""
+
+    kind: str
+    """``"celery"`` or ``"local"``, shown by ``/readyz``."""
+
+    def start(self) -> None:
+        """Prepare connections or processes (called once at application start-up)."""
+
+    def submit(self, job_id: str, limits: TimeLimits) -> None:
+        """Queue ``job_id``; raises when the job could not be handed over."""
+
+    def ping(self) -> str | None:
+        """``None`` if the queue is reachable, else a short reason."""
+
+    def queue_depth(self) -> int | None:
+        """Jobs waiting for a worker, if known."""
+
+    def shutdown(self) -> None:
+        """Release connections or processes (called once at application shutdown)."""

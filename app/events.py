@@ -1,0 +1,187 @@
+"""Server-sent events of one job: one ``iteration`` event per SCP iteration, then one ``end``.
+
+The database is the source of every event. A waker only decides when to look again: Redis
+pub/sub notices from the workers when a broker is configured, a short poll otherwise.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from collections.abc import AsyncIterator, Callable
+from contextlib import AbstractAsyncContextManager, asynccontextmanager
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any, Protocol
+
+import anyio.to_thread
+import redis.asyncio as aioredis
+from sqlalchemy import select
+from sse_starlette.sse import ServerSentEvent
+
+from app.storage.models import TERMINAL_STATUSES, Job
+from app.storage.session import Database
+from worker.notify import channel_for
+
+log = logging.getLogger(__name__)
+
+WaitFn = Callable[[float], Any]
+
+
+class Waker(Protocol):
+    """Gives an SSE stream a ``wait(timeout)`` that returns early when its job may have changed."""
+
+    def subscribe(self, job_id: str) -> AbstractAsyncContextManager[WaitFn]:
+        """Listen for changes of ``job_id`` while the context is open."""
+        ...
+
+    async def close(self) -> None:
+        """Release connections."""
+
+
+class PollingWaker:
+    """No notices: look again after a fixed short interval."""
+
+    def __init__(self, interval_s: float) -> None:
+        self._interval = interval_s
+
+    @asynccontextmanager
+    async def subscribe(self, job_id: str) -> AsyncIterator[WaitFn]:
+        """A wait that just sleeps the poll interval."""
+
+        async def wait(timeout: float) -> None:
+            await asyncio.sleep(min(timeout, self._interval))
+
+        yield wait
+
+    async def close(self) -> None:
+        """Nothing to release."""
+
+
+class RedisWaker:
+    """Wakes up on the workers' Redis notices; falls back to polling if Redis misbehaves."""
+
+    def __init__(self, url: str, fallback_interval_s: float) -> None:
+        self._url = url
+        self._fallback = fallback_interval_s
+        self._client: aioredis.Redis | None = None
+
+    def _redis(self) -> aioredis.Redis:
+        if self._client is None:
+            self._client = aioredis.Redis.from_url(self._url)
+        return self._client
+
+    @asynccontextmanager
+    async def subscribe(self, job_id: str) -> AsyncIterator[WaitFn]:
+        """A wait that returns at the next notice of ``job_id`` (or after ``timeout``)."""
+        pubsub = None
+        try:
+            pubsub = self._redis().pubsub()
+            await pubsub.subscribe(channel_for(job_id))
+        except Exception:
+            log.warning("no Redis notices for job %s; polling instead", job_id, exc_info=True)
+            pubsub = None
+
+        async def wait(timeout: float) -> None:
+            if pubsub is None:
+                await asyncio.sleep(min(timeout, self._fallback))
+                return
+            try:
+                message = await pubsub.get_message(ignore_subscribe_messages=True, timeout=timeout)
+                while message is not None:  # drain: one database read covers them all
+                    message = await pubsub.get_message(ignore_subscribe_messages=True, timeout=0)
+            except Exception:
+                log.warning("Redis notice wait failed", exc_info=True)
+                await asyncio.sleep(min(timeout, self._fallback))
+
+        try:
+            yield wait
+        finally:
+            if pubsub is not None:
+                try:
+                    await pubsub.unsubscribe()
+                    await pubsub.aclose()
+                except Exception:
+                    log.debug("closing a pubsub failed", exc_info=True)
+
+    async def close(self) -> None:
+        """Close the Redis connection pool."""
+        if self._client is not None:
+            await self._client.aclose()
+            self._client = None
+
+
+@dataclass(frozen=True)
+class _Snapshot:
+    status: str
+    attempts: int
+    updated_at: datetime
+    history: list[dict[str, Any]] | None
+
+
+def _read(database: Database, job_id: str, owner: str, since: datetime | None) -> _Snapshot | None:
+    with database.session() as session:
+        head = session.execute(
+            select(Job.status, Job.attempts, Job.updated_at).where(
+                Job.id == job_id, Job.owner == owner
+            )
+        ).one_or_none()
+        if head is None:
+            return None
+        status, attempts, updated_at = head
+        if since is not None and updated_at == since:
+            return _Snapshot(status, attempts, updated_at, None)
+        history = session.execute(select(Job.history).where(Job.id == job_id)).scalar_one()
+        return _Snapshot(status, attempts, updated_at, list(history or []))
+
+
+def parse_last_event_id(value: str | None) -> int:
+    """Iterations a reconnecting client already has, from its ``Last-Event-ID`` header."""
+    if value is None:
+        return 0
+    try:
+        return max(0, int(value.strip()))
+    except ValueError:
+        return 0
+
+
+async def job_events(
+    *,
+    database: Database,
+    waker: Waker,
+    job_id: str,
+    owner: str,
+    end_payload: Callable[[], Any],
+    after: int = 0,
+    idle_wait_s: float = 1.0,
+) -> AsyncIterator[ServerSentEvent]:
+    """Stream the job's iterations from number ``after + 1`` on, then a final ``end`` event.
+
+    ``end_payload`` is called (in a worker thread) once the job is finished; its JSON is the
+    data of the ``end`` event.
+    """
+    sent = after
+    attempts: int | None = None
+    since: datetime | None = None
+    async with waker.subscribe(job_id) as wait:
+        while True:
+            snap = await anyio.to_thread.run_sync(_read, database, job_id, owner, since)
+            if snap is None:
+                return
+            if snap.history is not None:
+                since = snap.updated_at
+                if attempts is not None and snap.attempts != attempts:
+                    sent = 0  # a new attempt starts its history again
+                attempts = snap.attempts
+                for index in range(sent, len(snap.history)):
+                    data = {"job_id": job_id, "attempt": snap.attempts, **snap.history[index]}
+                    yield ServerSentEvent(
+                        data=json.dumps(data), event="iteration", id=str(index + 1)
+                    )
+                sent = max(sent, len(snap.history))
+            if snap.status in TERMINAL_STATUSES:
+                payload = await anyio.to_thread.run_sync(end_payload)
+                yield ServerSentEvent(data=json.dumps(payload), event="end", id=str(sent + 1))
+                return
+            await wait(idle_wait_s)

@@ -1,0 +1,213 @@
+"""The job use cases behind the routes: submit, show, list, cancel, result and history."""
+
+from __future__ import annotations
+
+import logging
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy.exc import IntegrityError
+
+from app.dispatch import Dispatcher
+from app.errors import ApiError, not_found
+from app.settings import Settings
+from app.storage import repository
+from app.storage.models import ACTIVE_STATUSES, Job, JobStatus, utcnow
+from app.storage.session import Database
+from app.submission import check_method_support, request_fingerprint, resolve_submission
+from app.views import HistoryView, JobErrorInfo, JobLinks, JobPage, JobView, Progress
+from worker.limits import job_time_limits
+
+log = logging.getLogger(__name__)
+
+MAX_IDEMPOTENCY_KEY_LENGTH = 255
+
+
+def job_location(job_id: str) -> str:
+    """The URL path of a job."""
+    return f"/v1/jobs/{job_id}"
+
+
+def job_view(job: Job, settings: Settings, now: datetime | None = None) -> JobView:
+    """The API representation of a stored job."""
+    now = now or utcnow()
+    elapsed = None
+    if job.started_at is not None:
+        end = job.finished_at if job.status not in ACTIVE_STATUSES and job.finished_at else now
+        elapsed = max(0.0, (end - job.started_at).total_seconds())
+    error = JobErrorInfo(code=job.error_code, message=job.error_message) if job.error_code else None
+    base = job_location(job.id)
+    return JobView(
+        id=job.id,
+        status=job.status,
+        owner=job.owner,
+        method=job.method,
+        scenario=job.scenario,
+        attempts=job.attempts,
+        max_attempts=settings.max_attempts,
+        cancel_requested=job.cancel_requested,
+        created_at=job.created_at,
+        updated_at=job.updated_at,
+        started_at=job.started_at,
+        finished_at=job.finished_at,
+        elapsed_s=elapsed,
+        progress=Progress.model_validate(job.progress) if job.progress else None,
+        error=error,
+        solve_s=job.solve_s,
+        links=JobLinks(
+            self=base, result=f"{base}/result", history=f"{base}/history", events=f"{base}/events"
+        ),
+    )
+
+
+def _check_key(key: str | None) -> str | None:
+    if key is None:
+        return None
+    if not key or len(key) > MAX_IDEMPOTENCY_KEY_LENGTH or not key.isprintable():
+        raise ApiError(
+            422,
+            "invalid_idempotency_key",
+            f"Idempotency-Key must be 1..{MAX_IDEMPOTENCY_KEY_LENGTH} printable characters",
+            field="Idempotency-Key",
+        )
+    return key
+
+
+def _replay(existing: Job, fingerprint: str, key: str) -> Job:
+    if existing.request_hash != fingerprint:
+        raise ApiError(
+            422,
+            "idempotency_key_reused",
+            f"Idempotency-Key {key!r} was already used with a different body",
+            field="Idempotency-Key",
+        )
+    return existing
+
+
+def submit_job(
+    *,
+    database: Database,
+    dispatcher: Dispatcher,
+    settings: Settings,
+    owner: str,
+    body: Any,
+    idempotency_key: str | None,
+) -> tuple[JobView, bool]:
+    """Validate, store and dispatch a job; returns its view and whether it was a replay."""
+    key = _check_key(idempotency_key)
+    fingerprint = request_fingerprint(body) if key else None
+    if key and fingerprint:
+        with database.session() as session:
+            existing = repository.find_by_idempotency_key(session, owner, key)
+            if existing is not None:
+                return job_view(_replay(existing, fingerprint, key), settings), True
+
+    submission = resolve_submission(body)
+    check_method_support(submission)
+    new = repository.NewJob(
+        owner=owner,
+        method=submission.method,
+        problem=submission.document,
+        scenario=submission.scenario,
+        idempotency_key=key,
+        request_hash=fingerprint,
+    )
+    try:
+        with database.session() as session:
+            job = repository.create_job(session, new)
+    except IntegrityError:
+        if not (key and fingerprint):
+            raise
+        with database.session() as session:  # a concurrent request with the same key won
+            existing = repository.find_by_idempotency_key(session, owner, key)
+        if existing is None:
+            raise
+        return job_view(_replay(existing, fingerprint, key), settings), True
+
+    try:
+        dispatcher.submit(job.id, job_time_limits(submission.document, settings))
+    except Exception as exc:
+        log.exception("job %s could not be queued", job.id)
+        with database.session() as session:
+            repository.transition(
+                session,
+                job.id,
+                to=JobStatus.FAILED.value,
+                allowed_from=[JobStatus.QUEUED.value],
+                values={"error_code": "dispatch_failed", "error_message": str(exc)},
+            )
+        raise ApiError(
+            503, "queue_unavailable", "the job was stored but could not be queued"
+        ) from exc
+    return job_view(job, settings), False
+
+
+def _load(database: Database, owner: str, job_id: str) -> Job:
+    with database.session() as session:
+        job = repository.get_job(session, job_id, owner)
+    if job is None:
+        raise not_found("job", job_id)
+    return job
+
+
+def get_job(database: Database, settings: Settings, owner: str, job_id: str) -> JobView:
+    """The owner's job or 404."""
+    return job_view(_load(database, owner, job_id), settings)
+
+
+def list_jobs(
+    database: Database,
+    settings: Settings,
+    owner: str,
+    statuses: list[str] | None,
+    limit: int,
+    offset: int,
+) -> JobPage:
+    """A page of the owner's jobs, newest first."""
+    with database.session() as session:
+        jobs, total = repository.list_jobs(session, owner, statuses, limit, offset)
+    now = utcnow()
+    next_offset = offset + len(jobs) if offset + len(jobs) < total else None
+    return JobPage(
+        items=[job_view(j, settings, now) for j in jobs],
+        total=total,
+        limit=limit,
+        offset=offset,
+        next_offset=next_offset,
+    )
+
+
+def get_result(database: Database, owner: str, job_id: str) -> dict[str, Any]:
+    """The stored result document; 409 while the job is not finished or has none."""
+    job = _load(database, owner, job_id)
+    if job.status in ACTIVE_STATUSES:
+        raise ApiError(
+            409, "job_not_finished", f"job {job_id} is {job.status}; its result is not ready"
+        )
+    if job.result is None:
+        reason = f": {job.error_code}: {job.error_message}" if job.error_code else ""
+        raise ApiError(
+            409, "result_unavailable", f"job {job_id} ended {job.status} without a result{reason}"
+        )
+    return job.result
+
+
+def get_history(database: Database, owner: str, job_id: str) -> HistoryView:
+    """The convergence history so far."""
+    job = _load(database, owner, job_id)
+    return HistoryView(job_id=job.id, status=job.status, iterations=list(job.history or []))
+
+
+def cancel_job(
+    database: Database, settings: Settings, owner: str, job_id: str
+) -> tuple[JobView, int]:
+    """Cancel a queued job now (200) or ask a running one to stop (202); 409 if finished."""
+    with database.session() as session:
+        job = repository.request_cancel(session, job_id, owner)
+    if job is None:
+        raise not_found("job", job_id)
+    if job.status == JobStatus.RUNNING:
+        return job_view(job, settings), 202
+    if job.status == JobStatus.CANCELLED:
+        return job_view(job, settings), 200
+    raise ApiError(409, "job_finished", f"job {job_id} already ended {job.status}")

@@ -1,0 +1,125 @@
+"""``/v1/jobs``: submit, list, show, cancel, and read the result and the history of jobs."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Header, Query, Response
+
+from app import jobs_service
+from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep
+from app.routes.examples import PROBLEM_EXAMPLES
+from app.views import ErrorResponse, HistoryView, JobPage, JobStatusName, JobView
+
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
+
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorResponse}}
+
+
+@router.post(
+    "",
+    status_code=202,
+    response_model=JobView,
+    summary="Submit a job",
+    responses={
+        202: {"description": "Stored and queued; poll the Location."},
+        422: {"model": ErrorResponse, "description": "Every invalid field, listed."},
+        503: {"model": ErrorResponse, "description": "The queue is unreachable."},
+    },
+    openapi_extra={"x-problem-body": True},
+)
+def submit_job(
+    body: Annotated[dict[str, Any], Body(openapi_examples=PROBLEM_EXAMPLES)],
+    response: Response,
+    database: DatabaseDep,
+    dispatcher: DispatcherDep,
+    settings: SettingsDep,
+    owner: OwnerDep,
+    idempotency_key: Annotated[
+        str | None,
+        Header(
+            alias="Idempotency-Key",
+            description="Same key and body return the same job; same key, other body: 422.",
+        ),
+    ] = None,
+) -> JobView:
+    """Store a problem document (or a scenario with overrides) and queue it for solving."""
+    view, replayed = jobs_service.submit_job(
+        database=database,
+        dispatcher=dispatcher,
+        settings=settings,
+        owner=owner,
+        body=body,
+        idempotency_key=idempotency_key,
+    )
+    response.headers["Location"] = view.links.self
+    if replayed:
+        response.headers["Idempotent-Replayed"] = "true"
+    return view
+
+
+@router.get("", response_model=JobPage, summary="List your jobs")
+def list_jobs(
+    database: DatabaseDep,
+    settings: SettingsDep,
+    owner: OwnerDep,
+    status: Annotated[
+        list[JobStatusName] | None, Query(description="Only these statuses (repeatable).")
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=100)] = 20,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> JobPage:
+    """The caller's jobs, newest first, optionally filtered by status."""
+    statuses = [str(s) for s in status] if status else None
+    return jobs_service.list_jobs(database, settings, owner, statuses, limit, offset)
+
+
+@router.get("/{job_id}", response_model=JobView, responses=_NOT_FOUND, summary="Show a job")
+def get_job(job_id: str, database: DatabaseDep, settings: SettingsDep, owner: OwnerDep) -> JobView:
+    """Status, timestamps, attempts and live progress (updated every SCP iteration)."""
+    return jobs_service.get_job(database, settings, owner, job_id)
+
+
+@router.get(
+    "/{job_id}/result",
+    responses={**_NOT_FOUND, 409: {"model": ErrorResponse, "description": "Not finished."}},
+    summary="Fetch the result document",
+)
+def get_result(job_id: str, database: DatabaseDep, owner: OwnerDep) -> dict[str, Any]:
+    """The full result document of a finished job (409 while queued or running)."""
+    return jobs_service.get_result(database, owner, job_id)
+
+
+@router.get(
+    "/{job_id}/history",
+    response_model=HistoryView,
+    responses=_NOT_FOUND,
+    summary="Convergence history",
+)
+def get_history(job_id: str, database: DatabaseDep, owner: OwnerDep) -> HistoryView:
+    """Per-iteration records so far; available while the job runs."""
+    return jobs_service.get_history(database, owner, job_id)
+
+
+@router.delete(
+    "/{job_id}",
+    response_model=JobView,
+    responses={
+        200: {"description": "Cancelled (it had not started)."},
+        202: {"model": JobView, "description": "Running: stops at its next iteration."},
+        **_NOT_FOUND,
+        409: {"model": ErrorResponse, "description": "Already finished."},
+    },
+    summary="Cancel a job",
+)
+def cancel_job(
+    job_id: str,
+    response: Response,
+    database: DatabaseDep,
+    settings: SettingsDep,
+    owner: OwnerDep,
+) -> JobView:
+    """Cancel a queued job at once; a running job stops at its next iteration, keeping history."""
+    view, status = jobs_service.cancel_job(database, settings, owner, job_id)
+    response.status_code = status
+    return view

@@ -1,0 +1,85 @@
+"""Path constraints (heating, dynamic pressure, load factor) and control limits."""
+
+from __future__ import annotations
+
+from pydantic import Field, field_validator
+from pydantic_core import PydanticCustomError
+
+from app.schemas.base import StrictModel
+
+
+class HeatRateLimit(StrictModel):
+    """Stagnation-point heat rate bound: k_q rho^n V^m qa(alpha) <= max_W_m2 (SI units).
+
+    The alpha factor qa = c0 + c1 alpha + c2 alpha^2 + c3 alpha^3 (alpha in degrees) is the
+    Space Shuttle heating correction used by Wang, Leonard, Savvaris and Tsourdos.
+    """
+
+    max_W_m2: float = Field(  # noqa: N815 (unit symbol W)
+        ..., gt=0, description="Largest admissible heat rate, W/m^2."
+    )
+    k_q: float = Field(
+        ...,
+        gt=0,
+        description="Heating constant in SI: Qdot[W/m^2] = k_q * rho^density_exponent * "
+        "V^velocity_exponent * alpha_factor, rho in kg/m^3, V in m/s.",
+    )
+    velocity_exponent: float = Field(3.15, gt=0, description="Exponent m of the speed V.")
+    density_exponent: float = Field(0.5, gt=0, description="Exponent n of the density rho.")
+    alpha_polynomial: list[float] | None = Field(
+        None,
+        min_length=1,
+        max_length=4,
+        description="c0..c3 of the factor qa = sum_k c_k alpha_deg^k; none means qa = 1.",
+    )
+
+
+class DynamicPressureLimit(StrictModel):
+    """Dynamic pressure bound: rho V^2 / 2 <= max_Pa."""
+
+    max_Pa: float = Field(  # noqa: N815 (unit symbol Pa)
+        ..., gt=0, description="Largest admissible dynamic pressure, Pa."
+    )
+
+
+class LoadFactorLimit(StrictModel):
+    """Aerodynamic load factor bound: sqrt(L^2 + D^2) / (m g0) <= max_g."""
+
+    max_g: float = Field(
+        ..., gt=0, description="Largest admissible load factor, in units of g0 (surface gravity)."
+    )
+
+
+class PathConstraints(StrictModel):
+    """Inequality constraints along the whole trajectory; each is off when absent."""
+
+    heat_rate: HeatRateLimit | None = Field(None, description="Heat rate limit; none = off.")
+    dynamic_pressure: DynamicPressureLimit | None = Field(
+        None, description="Dynamic pressure limit; none = off."
+    )
+    load_factor: LoadFactorLimit | None = Field(None, description="Load factor limit; none = off.")
+
+
+class ControlLimits(StrictModel):
+    """Bounds on the bank angle, and on bank and angle-of-attack rates when they are states."""
+
+    bank_max_deg: float = Field(
+        80.0, description="Bound on |bank angle|, deg, in (0, 90] (lift never points down)."
+    )
+    bank_rate_max_deg_s: float | None = Field(
+        None, gt=0, description="Bound on |d bank/dt|, deg/s; none means unbounded."
+    )
+    alpha_rate_max_deg_s: float | None = Field(
+        None, gt=0, description="Bound on |d alpha/dt|, deg/s; none means unbounded."
+    )
+
+    @field_validator("bank_max_deg")
+    @classmethod
+    def _bank_range(cls, value: float) -> float:
+        if not 0.0 < value <= 90.0:
+            raise PydanticCustomError(
+                "bank_limit",
+                "bank limit must be in (0, 90] degrees, got {value}",
+                {"value": value},
+            )
+        return value

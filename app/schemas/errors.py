@@ -1,0 +1,58 @@
+"""Validation errors as a flat list of field issues, for API responses and command-line output."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from pydantic import Field, ValidationError
+
+from app.schemas.base import StrictModel
+
+_MESSAGES: dict[str, str] = {
+    "extra_forbidden": "unknown field: not part of the problem contract",
+    "missing": "required field is missing",
+    "finite_number": "must be a finite number (NaN and infinity are not allowed)",
+}
+
+
+class FieldIssue(StrictModel):
+    """One problem with a submitted document: where it is, what is wrong, and a stable code."""
+
+    field: str = Field(
+        ...,
+        description="Dotted path of the offending field, list indices in brackets, e.g. "
+        '"terminal.altitude_m" or "no_fly_zones[0]"; empty for the document itself.',
+    )
+    message: str = Field(..., description="Human-readable reason.")
+    code: str = Field(..., description='Machine-readable error type, e.g. "greater_than".')
+
+
+def dotted_path(loc: Sequence[str | int]) -> str:
+    """Render a pydantic error location as ``a.b[2].c``."""
+    path = ""
+    for part in loc:
+        if isinstance(part, int):
+            path += f"[{part}]"
+        else:
+            path += f".{part}" if path else str(part)
+    return path
+
+
+def _readable(error: Any) -> str:
+    """A message for one pydantic error without pydantic's generic prefixes."""
+    known = _MESSAGES.get(error["type"])
+    if known is not None:
+        return known
+    message = str(error["msg"])
+    for prefix in ("Value error, ", "Assertion failed, "):
+        message = message.removeprefix(prefix)
+    return message
+
+
+def issues_from_validation_error(exc: ValidationError) -> list[FieldIssue]:
+    """Every error of ``exc`` as a ``FieldIssue`` with a dotted field path, in pydantic's order."""
+    return [
+        FieldIssue(field=dotted_path(error["loc"]), message=_readable(error), code=error["type"])
+        for error in exc.errors(include_url=False)
+    ]

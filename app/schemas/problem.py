@@ -1,0 +1,188 @@
+"""The problem document: one versioned JSON object describing an entry trajectory optimization."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import ConfigDict, Field, model_validator
+
+from app.schemas.base import FieldProblem, StrictModel, raise_problems
+from app.schemas.constraints import ControlLimits, PathConstraints
+from app.schemas.examples import RLV_MIN_HEAT_LOAD
+from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_WAYPOINTS
+from app.schemas.methods import EnergyScpOptions, MethodSpec
+from app.schemas.objective import ObjectiveInput
+from app.schemas.planet import Planet
+from app.schemas.regions import NoFlyZone, Waypoint
+from app.schemas.state import EnergyBounds, FinalTime, FixedFinalTime, FreeFinalTime, InitialState
+from app.schemas.terminal import FixedSpec, RangeSpec, SoftSpec, TerminalConditions
+from app.schemas.vehicle import Vehicle
+
+SCHEMA_VERSION: Literal["1.0"] = "1.0"
+
+
+class ProblemDocument(StrictModel):
+    """An entry trajectory optimization problem: vehicle, planet, boundary conditions,
+    constraints, objective and solution method. SI units and degrees throughout."""
+
+    model_config = ConfigDict(
+        title="ProblemDocument",
+        json_schema_extra={"examples": [RLV_MIN_HEAT_LOAD]},
+    )
+
+    schema_version: Literal["1.0"] = Field(
+        SCHEMA_VERSION, description="Version of this contract; only 1.0 exists."
+    )
+    name: str | None = Field(None, max_length=200, description="Short label of the problem.")
+    description: str | None = Field(
+        None, max_length=10_000, description="Free-text description of the problem."
+    )
+    vehicle: Vehicle = Field(..., description="The entry vehicle.")
+    planet: Planet = Field(..., description="Planet shape, gravity, rotation and atmosphere.")
+    initial_state: InitialState = Field(..., description="State at the entry interface.")
+    terminal: TerminalConditions = Field(
+        default_factory=TerminalConditions,
+        description="Conditions on the final state; unspecified components are free.",
+    )
+    final_time: FinalTime = Field(
+        default_factory=FreeFinalTime, description="Free (default) or fixed final time."
+    )
+    energy: EnergyBounds | None = Field(
+        None,
+        description="Energy interval for energy-domain methods; none = derived from the initial "
+        "state and the terminal altitude and speed.",
+    )
+    path_constraints: PathConstraints = Field(
+        default_factory=PathConstraints, description="Heat rate, dynamic pressure, load factor."
+    )
+    control_limits: ControlLimits = Field(
+        default_factory=ControlLimits, description="Bank angle and control rate bounds."
+    )
+    no_fly_zones: list[NoFlyZone] = Field(
+        default_factory=list,
+        max_length=MAX_NO_FLY_ZONES,
+        description=f"Circular zones to avoid, at most {MAX_NO_FLY_ZONES}.",
+    )
+    waypoints: list[Waypoint] = Field(
+        default_factory=list,
+        max_length=MAX_WAYPOINTS,
+        description=f"Circular regions to overfly in order, at most {MAX_WAYPOINTS}.",
+    )
+    objective: ObjectiveInput = Field(
+        ...,
+        description="What to optimize: a list of weighted terms, or a single term name such as "
+        '"min_heat_load".',
+    )
+    method: MethodSpec = Field(
+        default_factory=EnergyScpOptions,
+        description='Solution method and its options; default {"name": "energy-scp"}.',
+    )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ProblemDocument:
+        problems = [
+            *self._terminal_altitude_problems(),
+            *self._no_fly_zone_problems(),
+            *self._waypoint_problems(),
+            *self._final_time_problems(),
+        ]
+        raise_problems("ProblemDocument", problems)
+        return self
+
+    def _terminal_altitude_problems(self) -> list[FieldProblem]:
+        spec = self.terminal.altitude_m
+        if isinstance(spec, FixedSpec):
+            floor, key = spec.value, "value"
+        elif isinstance(spec, RangeSpec):
+            floor, key = spec.lo, "lo"
+        else:
+            return []
+        initial = self.initial_state.altitude_m
+        if floor <= initial:
+            return []
+        return [
+            FieldProblem(
+                ("terminal", "altitude_m"),
+                "terminal_above_initial",
+                f"terminal altitude ({key} {floor:g} m) is above the initial altitude "
+                f"({initial:g} m)",
+                floor,
+            )
+        ]
+
+    def target_point_deg(self) -> tuple[float, float] | None:
+        """Final (latitude, longitude) in degrees when both are fixed or soft targets, else None."""
+        lat, lon = self.terminal.latitude_deg, self.terminal.longitude_deg
+        if isinstance(lat, FixedSpec | SoftSpec) and isinstance(lon, FixedSpec | SoftSpec):
+            return lat.value, lon.value
+        return None
+
+    def _no_fly_zone_problems(self) -> list[FieldProblem]:
+        radius = self.planet.radius_m
+        start = (self.initial_state.latitude_deg, self.initial_state.longitude_deg)
+        target = self.target_point_deg()
+        problems: list[FieldProblem] = []
+        for i, zone in enumerate(self.no_fly_zones):
+            label = f"no-fly zone {zone.name!r}" if zone.name else f"no-fly zone {i}"
+            if zone.contains_point(*start, radius):
+                problems.append(
+                    FieldProblem(
+                        ("no_fly_zones", i),
+                        "zone_contains_initial_point",
+                        f"{label} contains the initial point "
+                        f"(latitude {start[0]:g} deg, longitude {start[1]:g} deg)",
+                    )
+                )
+            if target is not None and zone.contains_point(*target, radius):
+                problems.append(
+                    FieldProblem(
+                        ("no_fly_zones", i),
+                        "zone_contains_target",
+                        f"{label} contains the target point "
+                        f"(latitude {target[0]:g} deg, longitude {target[1]:g} deg)",
+                    )
+                )
+        return problems
+
+    def _waypoint_problems(self) -> list[FieldProblem]:
+        first_index: dict[int, int] = {}
+        problems: list[FieldProblem] = []
+        for i, waypoint in enumerate(self.waypoints):
+            if waypoint.order in first_index:
+                problems.append(
+                    FieldProblem(
+                        ("waypoints", i, "order"),
+                        "duplicate_waypoint_order",
+                        f"waypoint order {waypoint.order} is already used by "
+                        f"waypoints[{first_index[waypoint.order]}]; orders must be unique",
+                        waypoint.order,
+                    )
+                )
+            else:
+                first_index[waypoint.order] = i
+        return problems
+
+    def _final_time_problems(self) -> list[FieldProblem]:
+        t0 = self.initial_state.time_s
+        final = self.final_time
+        if isinstance(final, FixedFinalTime) and final.value_s <= t0:
+            return [
+                FieldProblem(
+                    ("final_time", "value_s"),
+                    "final_time_order",
+                    f"fixed final time ({final.value_s:g} s) must exceed the initial time "
+                    f"({t0:g} s)",
+                    final.value_s,
+                )
+            ]
+        if isinstance(final, FreeFinalTime) and final.max_s is not None and final.max_s <= t0:
+            return [
+                FieldProblem(
+                    ("final_time", "max_s"),
+                    "final_time_order",
+                    f"latest final time ({final.max_s:g} s) must exceed the initial time "
+                    f"({t0:g} s)",
+                    final.max_s,
+                )
+            ]
+        return []

@@ -1,0 +1,96 @@
+"""Service settings from the environment: ``TRAJOPT_*``, ``DATABASE_URL`` and ``REDIS_URL``.
+
+One object configures the API, the local dispatcher and the Celery worker, so every process of a
+deployment reads the same limits and the same database.
+"""
+
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from pathlib import Path
+
+from pydantic import AliasChoices, Field, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+def default_data_dir() -> Path:
+    """Where the embedded SQLite file lives: ``$XDG_DATA_HOME/trajopt`` (``~/.local/share``)."""
+    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(base) / "trajopt"
+
+
+class Settings(BaseSettings):
+    """All tunables of the service; defaults give the embedded mode (SQLite, no broker)."""
+
+    model_config = SettingsConfigDict(env_prefix="TRAJOPT_", extra="ignore", populate_by_name=True)
+
+    data_dir: Path = Field(default_factory=default_data_dir)
+    database_url: str = Field(
+        default="",
+        validation_alias=AliasChoices("DATABASE_URL", "TRAJOPT_DATABASE_URL", "database_url"),
+        description="SQLAlchemy URL; empty means a SQLite file in data_dir.",
+    )
+    broker_url: str = Field(
+        default="",
+        validation_alias=AliasChoices(
+            "TRAJOPT_BROKER_URL", "REDIS_URL", "CELERY_BROKER_URL", "broker_url"
+        ),
+        description="Redis URL of the Celery broker; empty means jobs run in a local process pool.",
+    )
+    host: str = "127.0.0.1"
+    port: int = Field(default=8000, ge=1, le=65535)
+    auto_migrate: bool = True
+
+    default_owner: str = "default"
+    queue_name: str = "trajopt"
+    local_workers: int = Field(default=1, ge=1, le=64)
+
+    max_attempts: int = Field(default=3, ge=1, le=20)
+    default_time_limit_s: float = Field(default=300.0, gt=0)
+    max_time_limit_s: float = Field(default=900.0, gt=0)
+    soft_limit_margin_s: float = Field(default=5.0, ge=0)
+    hard_limit_grace_s: float = Field(default=30.0, gt=0)
+    visibility_timeout_s: float = Field(default=3600.0, gt=0)
+    worker_max_tasks_per_child: int = Field(default=200, ge=1)
+
+    event_poll_interval_s: float = Field(default=0.05, gt=0, le=5)
+    event_ping_interval_s: float = Field(default=15.0, gt=0)
+    request_timeout_s: float = Field(default=2.0, gt=0)
+
+    @model_validator(mode="after")
+    def _default_time_limit_within_cap(self) -> Settings:
+        if self.default_time_limit_s > self.max_time_limit_s:
+            self.default_time_limit_s = self.max_time_limit_s
+        return self
+
+    @property
+    def effective_database_url(self) -> str:
+        """The configured database URL, or the embedded SQLite file under ``data_dir``."""
+        if self.database_url:
+            return normalize_database_url(self.database_url)
+        return f"sqlite:///{(self.data_dir / 'trajopt.sqlite3').as_posix()}"
+
+    @property
+    def uses_broker(self) -> bool:
+        """True when jobs go through Celery (a broker URL is set)."""
+        return bool(self.broker_url)
+
+    @property
+    def max_hard_limit_s(self) -> float:
+        """The longest hard time limit any job can get: the cap plus both margins."""
+        return self.max_time_limit_s + self.soft_limit_margin_s + self.hard_limit_grace_s
+
+
+def normalize_database_url(url: str) -> str:
+    """Map ``postgres://``/``postgresql://`` to the psycopg 3 driver SQLAlchemy needs."""
+    for prefix in ("postgres://", "postgresql://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg://" + url[len(prefix) :]
+    return url
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process-wide settings read once from the environment."""
+    return Settings()

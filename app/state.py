@@ -1,0 +1,23 @@
+"""What the running API holds: settings, database, dispatcher, event waker and metrics registry."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from prometheus_client import CollectorRegistry
+
+from app.dispatch import Dispatcher
+from app.events import Waker
+from app.settings import Settings
+from app.storage.session import Database
+
+
+@dataclass
+class ServiceState:
+    """The long-lived objects of one API process, stored on ``app.state.service``."""
+
+    settings: Settings
+    database: Database
+    dispatcher: Dispatcher
+    waker: Waker
+    registry: CollectorRegistry

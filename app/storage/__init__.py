@@ -1,0 +1,1 @@
+"""Job storage: SQLAlchemy models, session factory, migrations and repository functions."""

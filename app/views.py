@@ -1,0 +1,241 @@
+"""Response and request models of the HTTP API (the problem document itself is in app.schemas)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.schemas import FieldIssue
+
+JobStatusName = Literal["queued", "running", "succeeded", "failed", "cancelled", "timed_out"]
+
+_JOB_ID = "3f2b8c1e-6d0a-4c55-9d1e-2a7f3b9c4e10"
+_TS = "2025-01-01T12:00:00Z"
+
+
+class ErrorDetail(BaseModel):
+    """What went wrong: a stable code, a message, the offending field and, for 422, every issue."""
+
+    code: str = Field(..., description="Machine-readable error code.")
+    message: str = Field(..., description="Human-readable explanation.")
+    field: str | None = Field(None, description="Dotted path of the offending field, if any.")
+    issues: list[FieldIssue] | None = Field(
+        None, description="Every problem found (validation errors only)."
+    )
+
+
+class ErrorResponse(BaseModel):
+    """The body of every error response."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "error": {
+                        "code": "job_not_found",
+                        "message": f"no job {_JOB_ID!r}",
+                        "field": None,
+                    }
+                }
+            ]
+        }
+    )
+
+    error: ErrorDetail
+
+
+class ScenarioJobRequest(BaseModel):
+    """Submit a built-in scenario, optionally changed by a deep-merged ``overrides`` document."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "scenario": "rlv-min-heat-load",
+                    "overrides": {"method": {"nodes": 20, "max_iterations": 10}},
+                }
+            ]
+        },
+    )
+
+    scenario: str = Field(..., description="Name of a built-in scenario (see /v1/scenarios).")
+    overrides: dict[str, Any] = Field(
+        default_factory=dict,
+        description="Partial problem document merged into the scenario: objects merge key by "
+        "key, anything else replaces.",
+    )
+    method: dict[str, Any] | None = Field(
+        None,
+        description='Method and options merged into the scenario\'s method, e.g. {"nodes": 40}.',
+    )
+
+
+class Progress(BaseModel):
+    """Live progress of a running job, written by the worker after every SCP iteration."""
+
+    iteration: int | None = None
+    cost: float | None = None
+    max_state_change: float | None = None
+    conic_status: str | None = None
+    elapsed_s: float | None = Field(None, description="Seconds from the attempt's start.")
+
+
+class JobErrorInfo(BaseModel):
+    """Why a job did not succeed."""
+
+    code: str
+    message: str | None = None
+
+
+class JobLinks(BaseModel):
+    """Where to find the job's parts."""
+
+    self: str
+    result: str
+    history: str
+    events: str
+
+
+class JobView(BaseModel):
+    """A job as the API shows it."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "id": _JOB_ID,
+                    "status": "running",
+                    "owner": "default",
+                    "method": "energy-scp",
+                    "scenario": "rlv-min-heat-load",
+                    "attempts": 1,
+                    "max_attempts": 3,
+                    "cancel_requested": False,
+                    "created_at": _TS,
+                    "updated_at": "2025-01-01T12:00:02Z",
+                    "started_at": "2025-01-01T12:00:00.050Z",
+                    "finished_at": None,
+                    "elapsed_s": 1.95,
+                    "progress": {
+                        "iteration": 4,
+                        "cost": 1.93e7,
+                        "max_state_change": 0.012,
+                        "conic_status": "optimal",
+                        "elapsed_s": 1.9,
+                    },
+                    "error": None,
+                    "solve_s": None,
+                    "links": {
+                        "self": f"/v1/jobs/{_JOB_ID}",
+                        "result": f"/v1/jobs/{_JOB_ID}/result",
+                        "history": f"/v1/jobs/{_JOB_ID}/history",
+                        "events": f"/v1/jobs/{_JOB_ID}/events",
+                    },
+                }
+            ]
+        }
+    )
+
+    id: str
+    status: JobStatusName
+    owner: str
+    method: str
+    scenario: str | None = None
+    attempts: int = Field(..., description="Times a worker started this job.")
+    max_attempts: int
+    cancel_requested: bool
+    created_at: datetime
+    updated_at: datetime
+    started_at: datetime | None = Field(None, description="Start of the latest attempt.")
+    finished_at: datetime | None = None
+    elapsed_s: float | None = Field(
+        None, description="Seconds since the latest start (until the end when finished)."
+    )
+    progress: Progress | None = None
+    error: JobErrorInfo | None = None
+    solve_s: float | None = Field(None, description="Solver wall time of the finished job.")
+    links: JobLinks
+
+
+class JobPage(BaseModel):
+    """One page of the caller's jobs, newest first."""
+
+    items: list[JobView]
+    total: int = Field(..., description="Jobs matching the filter.")
+    limit: int
+    offset: int
+    next_offset: int | None = Field(None, description="Offset of the next page, if any.")
+
+
+class HistoryView(BaseModel):
+    """The convergence history of a job so far (complete once it has finished)."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "job_id": _JOB_ID,
+                    "status": "running",
+                    "iterations": [
+                        {
+                            "iteration": 1,
+                            "cost": 2.1e7,
+                            "max_state_change": 0.31,
+                            "conic_status": "optimal",
+                            "conic_solve_s": 0.021,
+                            "iteration_wall_s": 0.034,
+                        }
+                    ],
+                }
+            ]
+        }
+    )
+
+    job_id: str
+    status: JobStatusName
+    iterations: list[dict[str, Any]]
+
+
+class ScenarioSummary(BaseModel):
+    """A built-in scenario in the listing."""
+
+    name: str
+    title: str
+    source: str
+
+
+class ScenarioView(ScenarioSummary):
+    """A built-in scenario with its full problem document and the corrections made to it."""
+
+    corrections: list[str]
+    problem: dict[str, Any]
+
+
+class MethodView(BaseModel):
+    """A solution method, what it supports and its default options."""
+
+    model_config = ConfigDict(extra="allow")
+
+    name: str
+    title: str | None = None
+    paper: str | None = None
+    features: list[str] = Field(default_factory=list)
+    default_options: dict[str, Any] = Field(default_factory=dict)
+
+
+class ValidationReport(BaseModel):
+    """A valid problem, normalized (defaults filled in) as it would be solved."""
+
+    valid: Literal[True] = True
+    issues: list[FieldIssue] = Field(default_factory=list)
+    problem: dict[str, Any]
+
+
+class Health(BaseModel):
+    """Liveness or readiness report."""
+
+    status: str
+    checks: dict[str, str] = Field(default_factory=dict)

@@ -1,0 +1,231 @@
+"""Job storage: forward-only status changes, the attempt guard, cancellation, idempotency keys.
+
+Runs on a migrated SQLite file here; ``tests/integration`` runs the same tests on PostgreSQL.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from alembic.autogenerate import compare_metadata
+from alembic.migration import MigrationContext
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import sessionmaker
+
+from app.storage import repository
+from app.storage.migrate import upgrade_database
+from app.storage.models import Base, JobStatus
+from app.storage.repository import ClaimState, NewJob
+from app.storage.session import Database, create_db_engine
+
+PROBLEM = {"method": {"name": "energy-scp", "time_limit_s": 10}}
+
+
+@pytest.fixture
+def database(tmp_path: Path) -> Iterator[Database]:
+    engine = create_db_engine(f"sqlite:///{tmp_path / 'jobs.sqlite3'}")
+    upgrade_database(engine)
+    yield Database(engine, sessionmaker(engine, expire_on_commit=False))
+    engine.dispose()
+
+
+def _new(db: Database, owner: str = "alice", key: str | None = None) -> str:
+    with db.session() as s:
+        return repository.create_job(
+            s, NewJob(owner=owner, method="energy-scp", problem=PROBLEM, idempotency_key=key)
+        ).id
+
+
+def _status(db: Database, job_id: str) -> str:
+    with db.session() as s:
+        job = repository.get_job(s, job_id)
+        assert job is not None
+        return job.status
+
+
+def test_migrations_match_the_models(database: Database) -> None:
+    with database.engine.connect() as connection:
+        diff = compare_metadata(MigrationContext.configure(connection), Base.metadata)
+    assert diff == []
+
+
+def test_create_and_owner_scoping(database: Database) -> None:
+    job_id = _new(database)
+    with database.session() as s:
+        job = repository.get_job(s, job_id, "alice")
+        assert job is not None
+        assert (job.status, job.attempts, job.history) == ("queued", 0, [])
+        assert job.created_at.tzinfo is not None
+        assert repository.get_job(s, job_id, "mallory") is None
+
+
+def test_attempts_are_counted_and_exhausted_jobs_fail_as_worker_lost(database: Database) -> None:
+    job_id = _new(database)
+    for expected in (1, 2, 3):
+        with database.session() as s:
+            claim = repository.claim_attempt(s, job_id, max_attempts=3)
+        assert claim == repository.Claim(ClaimState.CLAIMED, expected)
+        assert _status(database, job_id) == "running"
+    with database.session() as s:
+        claim = repository.claim_attempt(s, job_id, max_attempts=3)
+    assert claim.state is ClaimState.EXHAUSTED
+    with database.session() as s:
+        job = repository.get_job(s, job_id)
+        assert job is not None
+        assert (job.status, job.error_code, job.attempts) == ("failed", "worker_lost", 3)
+        assert job.finished_at is not None
+
+
+def test_duplicate_delivery_of_a_finished_job_changes_nothing(database: Database) -> None:
+    job_id = _new(database)
+    with database.session() as s:
+        attempt = repository.claim_attempt(s, job_id, 3).attempt
+        assert repository.transition(
+            s,
+            job_id,
+            to="succeeded",
+            allowed_from=["running"],
+            attempt=attempt,
+            values={"result": {"status": "succeeded"}, "history": [{"iteration": 1}]},
+        )
+    with database.session() as s:
+        assert repository.claim_attempt(s, job_id, 3).state is ClaimState.FINISHED
+        assert not repository.transition(s, job_id, to="running", allowed_from=["queued"])
+        assert not repository.transition(s, job_id, to="failed", allowed_from=["running"])
+        assert not repository.record_iteration(s, job_id, attempt, [], {"iteration": 9})
+    with database.session() as s:
+        job = repository.get_job(s, job_id)
+        assert job is not None
+        assert (job.status, job.attempts, job.result) == ("succeeded", 1, {"status": "succeeded"})
+        assert job.history == [{"iteration": 1}]
+
+
+def test_a_stale_attempt_cannot_write(database: Database) -> None:
+    job_id = _new(database)
+    with database.session() as s:
+        first = repository.claim_attempt(s, job_id, 3).attempt
+    with database.session() as s:
+        second = repository.claim_attempt(s, job_id, 3).attempt  # redelivered elsewhere
+    with database.session() as s:
+        assert not repository.record_iteration(s, job_id, first, [{"iteration": 1}], {})
+        assert repository.should_stop(s, job_id, first)
+        assert not repository.should_stop(s, job_id, second)
+        assert repository.record_iteration(s, job_id, second, [{"iteration": 1}], {"iteration": 1})
+        assert not repository.transition(
+            s, job_id, to="succeeded", allowed_from=["running"], attempt=first
+        )
+        assert repository.transition(
+            s, job_id, to="succeeded", allowed_from=["running"], attempt=second
+        )
+
+
+def test_only_one_concurrent_finisher_wins(database: Database) -> None:
+    job_id = _new(database)
+    with database.session() as s:
+        attempt = repository.claim_attempt(s, job_id, 3).attempt
+    wins: list[str] = []
+    barrier = threading.Barrier(4)
+
+    def finish(status: str) -> None:
+        barrier.wait()
+        with database.session() as s:
+            if repository.transition(
+                s, job_id, to=status, allowed_from=["running"], attempt=attempt
+            ):
+                wins.append(status)
+
+    threads = [
+        threading.Thread(target=finish, args=(s,))
+        for s in ("succeeded", "failed", "timed_out", "cancelled")
+    ]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(wins) == 1
+    assert _status(database, job_id) == wins[0]
+
+
+def test_cancel_queued_running_and_finished(database: Database) -> None:
+    queued, running, done = _new(database), _new(database), _new(database)
+    with database.session() as s:
+        attempt = repository.claim_attempt(s, running, 3).attempt
+        repository.claim_attempt(s, done, 3)
+        repository.transition(s, done, to="succeeded", allowed_from=["running"])
+    with database.session() as s:
+        job = repository.request_cancel(s, queued, "alice")
+        assert job is not None
+        assert (job.status, job.cancel_requested) == ("cancelled", True)
+        job = repository.request_cancel(s, running, "alice")
+        assert job is not None
+        assert (job.status, job.cancel_requested) == ("running", True)
+        assert repository.should_stop(s, running, attempt)
+        job = repository.request_cancel(s, done, "alice")
+        assert job is not None
+        assert job.status == "succeeded"
+        assert repository.request_cancel(s, queued, "mallory") is None
+        # a cancelled queued job is never started by a late delivery
+        assert repository.claim_attempt(s, queued, 3).state is ClaimState.FINISHED
+
+
+def test_redelivery_of_a_cancel_requested_running_job_ends_it(database: Database) -> None:
+    job_id = _new(database)
+    with database.session() as s:
+        repository.claim_attempt(s, job_id, 3)
+        repository.request_cancel(s, job_id, "alice")
+    with database.session() as s:  # the worker died before it saw the flag
+        assert repository.claim_attempt(s, job_id, 3).state is ClaimState.CANCELLED
+    assert _status(database, job_id) == "cancelled"
+
+
+def test_idempotency_keys_are_unique_per_owner(database: Database) -> None:
+    _new(database, "alice", "k1")
+    _new(database, "bob", "k1")
+    _new(database, "alice", None)
+    _new(database, "alice", None)
+    with pytest.raises(IntegrityError):
+        _new(database, "alice", "k1")
+    with database.session() as s:
+        job = repository.find_by_idempotency_key(s, "alice", "k1")
+        assert job is not None
+        assert job.owner == "alice"
+
+
+def test_listing_filters_and_pages(database: Database) -> None:
+    ids = [_new(database) for _ in range(5)]
+    _new(database, owner="bob")
+    with database.session() as s:
+        repository.transition(s, ids[0], to="cancelled", allowed_from=["queued"])
+    with database.session() as s:
+        page, total = repository.list_jobs(s, "alice", limit=2, offset=0)
+        assert total == 5
+        assert len(page) == 2
+        rest, _ = repository.list_jobs(s, "alice", limit=10, offset=2)
+        assert len({j.id for j in page} | {j.id for j in rest}) == 5
+        cancelled, total = repository.list_jobs(s, "alice", ["cancelled"])
+        assert (total, [j.id for j in cancelled]) == (1, [ids[0]])
+        assert repository.active_job_ids(s)[:4] == ids[1:]  # oldest first
+
+
+def test_counts_and_solve_time_histogram(database: Database) -> None:
+    times = [0.05, 0.3, 2.0]
+    for solve_s in times:
+        job_id = _new(database)
+        with database.session() as s:
+            repository.transition(
+                s, job_id, to="succeeded", allowed_from=["queued"], values={"solve_s": solve_s}
+            )
+    _new(database)
+    with database.session() as s:
+        counts = repository.count_by_status(s)
+        histogram = repository.solve_time_histogram(s, [0.1, 1.0, 10.0])
+    assert counts["succeeded"] == 3
+    assert counts["queued"] == 1
+    assert set(counts) == {status.value for status in JobStatus}
+    assert histogram.cumulative == (1, 2, 3)
+    assert histogram.count == 3
+    # sums of three short binary fractions: exact to rounding, so 1e-12 is ample
+    assert histogram.total == pytest.approx(sum(times), abs=1e-12)

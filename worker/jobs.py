@@ -1,0 +1,299 @@
+"""Run one stored job: claim an attempt, solve, record progress per iteration, store the outcome.
+
+``execute_job`` is the single code path of every worker: the Celery task calls it, and so does the
+local process pool of the embedded mode. It imports neither FastAPI nor Celery.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pydantic import ValidationError
+
+from app.settings import Settings, get_settings
+from app.storage import repository
+from app.storage.models import JobStatus
+from app.storage.repository import ClaimState
+from app.storage.session import Database, get_database
+from worker.limits import TimeLimits, job_time_limits
+
+log = logging.getLogger(__name__)
+
+SolveFn = Callable[..., dict[str, Any]]
+NotifyFn = Callable[[str, str], None]
+"""``notify(job_id, kind)`` with kind ``"iteration"`` or ``"end"``: wakes up event streams."""
+
+
+def json_safe(value: Any) -> Any:
+    """A copy of ``value`` that is strict JSON: non-finite floats become ``None``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return json_safe(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if value is None or isinstance(value, str | int | bool):
+        return value
+    if hasattr(value, "item"):  # numpy scalars
+        return json_safe(value.item())
+    if hasattr(value, "tolist"):  # numpy arrays
+        return json_safe(value.tolist())
+    return str(value)
+
+
+def progress_of(record: dict[str, Any], elapsed_s: float) -> dict[str, Any]:
+    """The live-progress summary of one iteration record."""
+    return {
+        "iteration": record.get("iteration"),
+        "cost": record.get("cost"),
+        "max_state_change": record.get("max_state_change"),
+        "conic_status": record.get("conic_status"),
+        "elapsed_s": round(elapsed_s, 6),
+    }
+
+
+@dataclass
+class _Attempt:
+    """State of one running attempt, shared by the solver callbacks."""
+
+    job_id: str
+    attempt: int
+    database: Database
+    limits: TimeLimits
+    notify: NotifyFn | None
+    passthrough: tuple[type[BaseException], ...] = ()
+    started: float = field(default_factory=time.monotonic)
+    history: list[dict[str, Any]] = field(default_factory=list)
+    deadline_hit: bool = False
+    stop_requested: bool = False
+    write_errors: int = 0
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.started
+
+    def on_iteration(self, record: Any) -> None:
+        clean = json_safe(record)
+        if not isinstance(clean, dict):
+            clean = {"record": clean}
+        self.history.append(clean)
+        try:
+            with self.database.session() as session:
+                owned = repository.record_iteration(
+                    session,
+                    self.job_id,
+                    self.attempt,
+                    list(self.history),
+                    progress_of(clean, self.elapsed()),
+                )
+            if not owned:
+                self.stop_requested = True
+        except self.passthrough:
+            raise
+        except Exception:  # a lost progress write must not kill the solve
+            self.write_errors += 1
+            log.exception("job %s: could not store iteration progress", self.job_id)
+            return
+        if self.notify is not None:
+            self.notify(self.job_id, "iteration")
+
+    def should_stop(self) -> bool:
+        if self.elapsed() > self.limits.solve_s:
+            self.deadline_hit = True
+            return True
+        if self.stop_requested:
+            return True
+        try:
+            with self.database.session() as session:
+                self.stop_requested = repository.should_stop(session, self.job_id, self.attempt)
+        except self.passthrough:
+            raise
+        except Exception:
+            log.exception("job %s: could not read the cancel flag", self.job_id)
+        return self.stop_requested
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What is stored when an attempt ends."""
+
+    status: str
+    result: dict[str, Any] | None
+    history: list[dict[str, Any]]
+    error_code: str | None
+    error_message: str | None
+    solve_s: float | None
+
+
+def _outcome_from_result(result: dict[str, Any], attempt: _Attempt) -> Outcome:
+    result = json_safe(result)
+    history = result.get("history")
+    if not isinstance(history, list):
+        history = list(attempt.history)
+    status = str(result.get("status"))
+    failure = result.get("failure") if isinstance(result.get("failure"), dict) else None
+    if status == JobStatus.CANCELLED and attempt.deadline_hit and not attempt.stop_requested:
+        status = JobStatus.TIMED_OUT.value
+        failure = {
+            "code": "time_limit",
+            "message": f"stopped at the job's time limit of {attempt.limits.solve_s:g} s",
+        }
+        result["status"], result["failure"] = status, failure
+    elif status == JobStatus.CANCELLED:
+        failure = failure or {"code": "cancelled", "message": "cancelled on request"}
+    if status not in {s.value for s in JobStatus} or status in (JobStatus.QUEUED, "running"):
+        return Outcome(
+            JobStatus.FAILED.value,
+            result,
+            history,
+            "internal_error",
+            f"the solver returned an unknown status {status!r}",
+            None,
+        )
+    timing = result.get("timing") if isinstance(result.get("timing"), dict) else {}
+    wall = timing.get("wall_s") if timing else None
+    solve_s = float(wall) if isinstance(wall, int | float) else attempt.elapsed()
+    return Outcome(
+        status=status,
+        result=result,
+        history=history,
+        error_code=str(failure.get("code")) if failure else None,
+        error_message=str(failure.get("message")) if failure else None,
+        solve_s=solve_s,
+    )
+
+
+def _default_solve() -> SolveFn:
+    from worker.solver.api import solve_problem
+
+    return solve_problem
+
+
+def _finish(attempt: _Attempt, outcome: Outcome) -> bool:
+    last = outcome.history[-1] if outcome.history else None
+    values: dict[str, Any] = {
+        "result": outcome.result,
+        "history": outcome.history,
+        "error_code": outcome.error_code,
+        "error_message": outcome.error_message,
+        "solve_s": outcome.solve_s,
+    }
+    if last is not None:
+        values["progress"] = progress_of(last, attempt.elapsed())
+    with attempt.database.session() as session:
+        return repository.transition(
+            session,
+            attempt.job_id,
+            to=outcome.status,
+            allowed_from=[JobStatus.RUNNING.value],
+            attempt=attempt.attempt,
+            values=values,
+        )
+
+
+def execute_job(
+    job_id: str,
+    *,
+    settings: Settings | None = None,
+    solve: SolveFn | None = None,
+    timeout_exceptions: tuple[type[BaseException], ...] = (),
+    notify: NotifyFn | None = None,
+) -> str:
+    """Run job ``job_id`` once and return its final status (or why it did not run).
+
+    Safe to call for any delivery: a finished or unknown job is left alone, the attempt counter
+    is incremented atomically, and after ``max_attempts`` the job ends ``failed``/``worker_lost``.
+    ``timeout_exceptions`` are raised into the solve by a supervisor's soft time limit; they end
+    the job as ``timed_out`` with the history collected so far.
+    """
+    settings = settings or get_settings()
+    database = get_database(settings.effective_database_url)
+    with database.session() as session:
+        claim = repository.claim_attempt(session, job_id, settings.max_attempts)
+        problem_raw = None
+        if claim.state is ClaimState.CLAIMED:
+            job = repository.get_job(session, job_id)
+            problem_raw = job.problem if job is not None else None
+    if claim.state is not ClaimState.CLAIMED or problem_raw is None:
+        log.info("job %s not run: %s", job_id, claim.state.value)
+        if notify is not None and claim.state in (ClaimState.EXHAUSTED, ClaimState.CANCELLED):
+            notify(job_id, "end")
+        return claim.state.value
+
+    attempt = _Attempt(
+        job_id=job_id,
+        attempt=claim.attempt,
+        database=database,
+        limits=job_time_limits(problem_raw, settings),
+        notify=notify,
+        passthrough=timeout_exceptions,
+    )
+    outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
+    try:
+        stored = _finish(attempt, outcome)
+    except timeout_exceptions:  # a soft limit fires once: the second write is not interrupted
+        stored = _finish(attempt, outcome)
+    if not stored:
+        log.warning("job %s: attempt %d no longer owns the job", job_id, attempt.attempt)
+    if notify is not None:
+        notify(job_id, "end")
+    return outcome.status
+
+
+def _solve(
+    attempt: _Attempt,
+    problem_raw: dict[str, Any],
+    solve: SolveFn,
+    timeout_exceptions: tuple[type[BaseException], ...],
+) -> Outcome:
+    from app.schemas import ProblemDocument
+
+    try:
+        problem = ProblemDocument.model_validate(problem_raw)
+    except ValidationError as exc:
+        return Outcome(
+            JobStatus.FAILED.value,
+            None,
+            [],
+            "invalid_problem",
+            f"the stored problem no longer validates: {exc.error_count()} error(s)",
+            None,
+        )
+    try:
+        result = solve(problem, on_iteration=attempt.on_iteration, should_stop=attempt.should_stop)
+    except timeout_exceptions:
+        return Outcome(
+            JobStatus.TIMED_OUT.value,
+            None,
+            list(attempt.history),
+            "time_limit",
+            f"the worker's soft time limit of {attempt.limits.soft_s:g} s was reached",
+            attempt.elapsed(),
+        )
+    except Exception as exc:
+        log.exception("job %s: the solver raised", attempt.job_id)
+        return Outcome(
+            JobStatus.FAILED.value,
+            None,
+            list(attempt.history),
+            "internal_error",
+            f"{type(exc).__name__}: {exc}",
+            attempt.elapsed(),
+        )
+    if not isinstance(result, dict):
+        return Outcome(
+            JobStatus.FAILED.value,
+            None,
+            list(attempt.history),
+            "internal_error",
+            "the solver returned no result document",
+            attempt.elapsed(),
+        )
+    return _outcome_from_result(result, attempt)

@@ -1,0 +1,129 @@
+"""Public entry point of the solver core: one problem document in, one result document out.
+
+Data flow: request schema -> problem model (problem.build_problem) -> method (transcription +
+SCP loop + conic backend) -> verification by propagation -> result document.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from app.schemas import ProblemDocument
+from worker.solver.methods import check_support
+from worker.solver.objectives import UNITS
+from worker.solver.problem import build_problem
+from worker.solver.result import provenance, sanitize, trajectory_columns, validated
+from worker.solver.scp.energy_scp import run_energy_scp, to_trajectory
+from worker.solver.scp.history import IterationRecord
+from worker.solver.verification import verify
+
+IterationCallback = Callable[[dict[str, Any]], None]
+StopCheck = Callable[[], bool]
+
+_STATUS = {
+    "converged": "succeeded",
+    "max_iterations": "failed",
+    "failed": "failed",
+    "cancelled": "cancelled",
+    "timed_out": "timed_out",
+}
+
+
+def _verification_failures(report: dict[str, Any]) -> list[str]:
+    reasons = []
+    if not report["reached_end"]:
+        reasons.append("the propagated trajectory did not reach the end of the optimized one")
+    for name, entry in report["terminal_error_vs_target"].items():
+        if entry["kind"] in ("fixed", "range") and not entry["within"]:
+            reasons.append(f"terminal {name} off by {entry['error']:.4g} (tolerance {entry['tolerance']:g})")
+    for name, entry in report["path_maxima"].items():
+        if "within" in entry and not entry["within"]:
+            reasons.append(f"{name} peaks at {entry['ratio']:.4f} of its limit")
+    for zone in report["no_fly_zones"]:
+        if not zone["within"]:
+            reasons.append(f"no-fly zone {zone['name'] or ''} entered by {-zone['min_clearance_deg']:.4f} deg")
+    return reasons
+
+
+def solve_problem(
+    problem: ProblemDocument,
+    *,
+    on_iteration: IterationCallback | None = None,
+    should_stop: StopCheck | None = None,
+) -> dict[str, Any]:
+    """Solve ``problem`` with its selected method and return the JSON-ready result document.
+
+    ``on_iteration`` receives each per-iteration history record as soon as it exists;
+    ``should_stop`` is polled once per SCP iteration (a true answer ends the solve as
+    ``cancelled`` with the history so far). Solver failures (infeasible, diverged, time
+    limit, numerical trouble, failed verification) come back as a result with ``status``
+    ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only programming errors raise.
+    """
+    start = time.perf_counter()
+    method = problem.method.name
+    issues = check_support(problem)
+    if issues:
+        message = "; ".join(f"{i.field}: {i.message}" for i in issues)
+        return validated({
+            "status": "failed", "method": method,
+            "failure": {"code": "unsupported_by_method", "message": message},
+            "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
+        })  # fmt: skip
+    model = build_problem(problem)
+
+    def forward(record: IterationRecord) -> None:
+        if on_iteration is not None:
+            on_iteration(sanitize(record.as_dict()))
+
+    scp_start = time.perf_counter()
+    outcome = run_energy_scp(model, problem.method, on_iteration=forward, should_stop=should_stop)
+    wall = time.perf_counter() - scp_start
+    status = _STATUS[outcome.status]
+    failure = (
+        {"code": outcome.failure_code or "failed", "message": outcome.failure_message or ""}
+        if status != "succeeded"
+        else None
+    )
+    document: dict[str, Any] = {
+        "status": status,
+        "failure": failure,
+        "method": method,
+        "history": [r.as_dict() for r in outcome.history],
+        "provenance": provenance(model),
+    }
+    verification_s = 0.0
+    if outcome.history:
+        traj = to_trajectory(model, outcome)
+        v_start = time.perf_counter()
+        report = verify(model, traj)
+        verification_s = time.perf_counter() - v_start
+        document["trajectory"] = trajectory_columns(model, traj)
+        document["verification"] = report
+        last = outcome.history[-1]
+        terms = {k.split(":", 1)[1]: v for k, v in last.cost_terms.items() if k.startswith("objective:")}
+        single = len(terms) == 1
+        name = next(iter(terms)) if single else "weighted_sum"
+        document["objective"] = {
+            "name": name,
+            "value": next(iter(terms.values())) if single else None,
+            "units": UNITS.get(name, "mixed"),
+            "propagated_value": report["heat_load_J_m2"] if name == "min_heat_load" else None,
+            "terms": terms,
+        }
+        if status == "succeeded" and not report["feasible"]:
+            document["status"] = "failed"
+            document["failure"] = {
+                "code": "verification_failed",
+                "message": "converged, but the propagated controls violate: "
+                + "; ".join(_verification_failures(report)),
+            }
+    document["timing"] = {
+        "wall_s": wall,
+        "conic_solve_s": outcome.conic_solve_s,
+        "iterations": len(outcome.history),
+        "verification_s": verification_s,
+        "total_s": time.perf_counter() - start,
+    }
+    return validated(document)

@@ -1,0 +1,136 @@
+"""Path quantities (heat rate, dynamic pressure, load factor) and their limits.
+
+Values are SI (W/m^2, Pa, g) with partials in the nondimensional radius and speed. In the energy
+domain, where V is fixed by (r, e), each limit becomes a lower bound on the radius (paper 000
+eq. 15-16); ``radius_lower_bound`` finds it by bisection because with the exact speed
+V(r, e) = sqrt(2(1/r - e)) the bound has no closed form.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from worker.solver.forces import ForceTerms, VehicleForces
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class HeatRateModel:
+    """Qdot = k_q rho^n V^m qa(alpha), SI (paper 000 eq. 12; paper 004's alpha factor qa)."""
+
+    k_q: float
+    velocity_exponent: float = 3.15
+    density_exponent: float = 0.5
+    alpha_polynomial: tuple[float, ...] | None = None
+
+    def alpha_factor(self, alpha_deg: Array) -> tuple[Array, Array]:
+        """qa(alpha) and d qa / d alpha (alpha in degrees); (1, 0) when no polynomial is given."""
+        if not self.alpha_polynomial:
+            return np.ones_like(alpha_deg), np.zeros_like(alpha_deg)
+        c = self.alpha_polynomial
+        val = np.zeros_like(alpha_deg) + c[-1]
+        der = np.zeros_like(alpha_deg)
+        for coef in reversed(c[:-1]):
+            der = der * alpha_deg + val
+            val = val * alpha_deg + coef
+        return val, der
+
+
+@dataclass(frozen=True)
+class PathLimits:
+    """Optional upper limits on heat rate (W/m^2), dynamic pressure (Pa) and load factor (g)."""
+
+    heat: HeatRateModel | None = None
+    heat_max_W_m2: float | None = None
+    dynamic_pressure_max_Pa: float | None = None
+    load_factor_max_g: float | None = None
+
+    @property
+    def any(self) -> bool:
+        return any(
+            lim is not None
+            for lim in (self.heat_max_W_m2, self.dynamic_pressure_max_Pa, self.load_factor_max_g)
+        )
+
+
+@dataclass
+class PathValues:
+    """Heat rate, dynamic pressure, load factor (SI) and their partials in (r, V) nondimensional."""
+
+    heat_rate: Array
+    heat_rate_r: Array
+    heat_rate_v: Array
+    dynamic_pressure: Array
+    load_factor: Array
+
+
+def path_values(
+    forces: VehicleForces, heat: HeatRateModel | None, r: Array, v: Array, ft: ForceTerms
+) -> PathValues:
+    """Evaluate the path quantities from already computed force terms at (r, V)."""
+    sc = forces.scales
+    v_dim = v * sc.speed_m_s
+    qbar = 0.5 * ft.rho * v_dim * v_dim
+    nload = np.sqrt(ft.lift * ft.lift + ft.drag * ft.drag)
+    if heat is None:
+        zero = np.zeros_like(r)
+        return PathValues(zero, zero, zero, qbar, nload)
+    qa, qa_a = heat.alpha_factor(ft.alpha_deg)
+    base = heat.k_q * ft.rho**heat.density_exponent * v_dim**heat.velocity_exponent
+    qdot = base * qa
+    qdot_r = qdot * heat.density_exponent * ft.rho_r / ft.rho
+    qdot_v = qdot * heat.velocity_exponent / v + base * qa_a * ft.alpha_v
+    return PathValues(qdot, qdot_r, qdot_v, qbar, nload)
+
+
+def limit_ratio(forces: VehicleForces, limits: PathLimits, r: Array, v: Array) -> Array:
+    """max over the active limits of value / limit (<= 1 means all limits hold)."""
+    ft = forces.terms(r, v)
+    pv = path_values(forces, limits.heat, r, v, ft)
+    ratio = np.zeros_like(r)
+    if limits.heat_max_W_m2 is not None:
+        ratio = np.maximum(ratio, pv.heat_rate / limits.heat_max_W_m2)
+    if limits.dynamic_pressure_max_Pa is not None:
+        ratio = np.maximum(ratio, pv.dynamic_pressure / limits.dynamic_pressure_max_Pa)
+    if limits.load_factor_max_g is not None:
+        ratio = np.maximum(ratio, pv.load_factor / limits.load_factor_max_g)
+    return ratio
+
+
+def radius_lower_bound(
+    forces: VehicleForces,
+    limits: PathLimits,
+    e: Array,
+    r_floor: float,
+    r_ceiling: float,
+    iterations: int = 60,
+) -> tuple[Array, Array]:
+    """Smallest radius at each energy where every path limit holds, by vectorized bisection.
+
+    Assumes each path quantity decreases with altitude at fixed energy (denser air and higher
+    speed lower down), which holds for the exponential and US76 atmospheres. Returns the bound
+    (``r_floor`` where no limit binds) and a flag per node that is False where even
+    ``r_ceiling`` violates a limit (the problem is infeasible there).
+    """
+    e = np.asarray(e, dtype=float)
+    lo = np.full_like(e, r_floor)
+    hi = np.minimum(np.full_like(e, r_ceiling), 1.0 / e * (1.0 - 1e-9))
+    if not limits.any:
+        return lo, np.ones_like(e, dtype=bool)
+
+    def ratio(r: Array) -> Array:
+        v = np.sqrt(2.0 * (1.0 / r - e))
+        return limit_ratio(forces, limits, r, v)
+
+    feasible = ratio(hi) <= 1.0
+    unconstrained = ratio(lo) <= 1.0
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        ok = ratio(mid) <= 1.0
+        hi = np.where(ok, mid, hi)
+        lo = np.where(ok, lo, mid)
+    bound = np.where(unconstrained, r_floor, hi)
+    return bound, feasible

@@ -1,0 +1,215 @@
+"""The solver's problem model: the request document turned into nondimensional, typed parts.
+
+This is the second stage of the data flow (request schema -> problem model -> transcription ->
+SCP -> conic backend -> verification): everything downstream works in the units of
+``units.Scales`` and never looks at the request document again.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from app.schemas import ProblemDocument
+from worker.solver.aerodynamics import aero_from_spec, alpha_schedule_from_spec
+from worker.solver.atmosphere import atmosphere_from_spec
+from worker.solver.forces import VehicleForces
+from worker.solver.path_limits import HeatRateModel, PathLimits
+from worker.solver.units import Scales
+
+TerminalKind = Literal["fixed", "range", "free", "soft"]
+STATE_NAMES = ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s",
+               "flight_path_angle_deg", "heading_deg")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class TerminalTarget:
+    """One terminal condition in nondimensional units (radius for altitude, radians for angles)."""
+
+    kind: TerminalKind
+    value: float | None = None
+    lo: float | None = None
+    hi: float | None = None
+    weight: float = 0.0
+
+    def target(self) -> float | None:
+        """The value aimed at: fixed or soft value, or a range's midpoint."""
+        if self.kind in ("fixed", "soft"):
+            return self.value
+        if self.kind == "range" and self.lo is not None and self.hi is not None:
+            return 0.5 * (self.lo + self.hi)
+        return None
+
+
+@dataclass(frozen=True)
+class ObjectiveTerm:
+    """A term of the objective: its name and weight."""
+
+    name: str
+    weight: float
+
+
+@dataclass(frozen=True)
+class CircleZone:
+    """A circular no-fly zone or waypoint on the sphere, angles in radians."""
+
+    latitude: float
+    longitude: float
+    radius: float
+    name: str | None = None
+    order: int = 0
+
+
+@dataclass
+class EntryProblem:
+    """Nondimensional entry problem shared by every method."""
+
+    document: ProblemDocument
+    scales: Scales
+    forces: VehicleForces
+    omega: float
+    limits: PathLimits
+    heat_model: HeatRateModel | None
+    bank_max: float
+    bank_rate_max: float | None
+    y0: np.ndarray  # [r, theta, phi, V, gamma, psi] at the initial time
+    t0: float
+    terminal: dict[str, TerminalTarget]  # keyed by STATE_NAMES
+    final_time: float | None  # nondimensional, None when free
+    energy_initial: float | None
+    energy_final: float | None
+    objective: list[ObjectiveTerm]
+    no_fly_zones: list[CircleZone] = field(default_factory=list)
+    waypoints: list[CircleZone] = field(default_factory=list)
+    alpha_optimized: bool = False
+
+    def radius(self, altitude_m: float) -> float:
+        return 1.0 + altitude_m / self.scales.radius_m
+
+    def altitude_m(self, radius_nd: np.ndarray) -> np.ndarray:
+        return (radius_nd - 1.0) * self.scales.radius_m
+
+
+def _terminal_to_nd(spec: Any, to_nd: Any) -> TerminalTarget:
+    kind = spec.kind
+    if kind == "fixed":
+        return TerminalTarget("fixed", value=to_nd(spec.value))
+    if kind == "range":
+        return TerminalTarget("range", lo=to_nd(spec.lo), hi=to_nd(spec.hi))
+    if kind == "soft":
+        return TerminalTarget("soft", value=to_nd(spec.value), weight=float(spec.weight))
+    return TerminalTarget("free")
+
+
+def _zone_radius_rad(zone: Any, planet_radius_m: float) -> float:
+    if getattr(zone, "radius_deg", None) is not None:
+        return math.radians(zone.radius_deg)
+    return float(zone.radius_km) * 1000.0 / planet_radius_m
+
+
+def build_problem(doc: ProblemDocument) -> EntryProblem:
+    """Turn a validated problem document into the solver's nondimensional model."""
+    planet = doc.planet
+    g0 = planet.surface_gravity_m_s2
+    scales = Scales(radius_m=planet.radius_m, g0_m_s2=g0)
+    vehicle = doc.vehicle
+    schedule = alpha_schedule_from_spec(vehicle.angle_of_attack)
+    forces = VehicleForces(
+        scales=scales,
+        mass_kg=vehicle.mass_kg,
+        area_m2=vehicle.reference_area_m2,
+        atmosphere=atmosphere_from_spec(planet.atmosphere),
+        aero=aero_from_spec(vehicle.aerodynamics),
+        alpha_schedule=schedule,
+    )
+    omega = planet.rotation_rate_rad_s / scales.rate_rad_s if planet.rotation else 0.0
+
+    pc = doc.path_constraints
+    heat_model = None
+    if pc.heat_rate is not None:
+        hr = pc.heat_rate
+        heat_model = HeatRateModel(
+            k_q=hr.k_q,
+            velocity_exponent=hr.velocity_exponent,
+            density_exponent=hr.density_exponent,
+            alpha_polynomial=tuple(hr.alpha_polynomial) if hr.alpha_polynomial else None,
+        )
+    limits = PathLimits(
+        heat=heat_model,
+        heat_max_W_m2=pc.heat_rate.max_W_m2 if pc.heat_rate is not None else None,
+        dynamic_pressure_max_Pa=pc.dynamic_pressure.max_Pa if pc.dynamic_pressure else None,
+        load_factor_max_g=pc.load_factor.max_g if pc.load_factor else None,
+    )
+
+    s0 = doc.initial_state
+    y0 = np.array(
+        [
+            1.0 + s0.altitude_m / scales.radius_m,
+            math.radians(s0.longitude_deg),
+            math.radians(s0.latitude_deg),
+            s0.velocity_m_s / scales.speed_m_s,
+            math.radians(s0.flight_path_angle_deg),
+            math.radians(s0.heading_deg),
+        ]
+    )
+    converters = {
+        "altitude_m": lambda h: 1.0 + float(h) / scales.radius_m,
+        "longitude_deg": lambda a: math.radians(float(a)),
+        "latitude_deg": lambda a: math.radians(float(a)),
+        "velocity_m_s": lambda v: float(v) / scales.speed_m_s,
+        "flight_path_angle_deg": lambda a: math.radians(float(a)),
+        "heading_deg": lambda a: math.radians(float(a)),
+    }
+    terminal = {
+        name: _terminal_to_nd(getattr(doc.terminal, name), converters[name]) for name in STATE_NAMES
+    }
+    final_time = None
+    if doc.final_time.kind == "fixed":
+        final_time = (doc.final_time.value_s - s0.time_s) / scales.time_s
+    energy_initial = doc.energy.initial if doc.energy is not None else None
+    energy_final = doc.energy.final if doc.energy is not None else None
+    zones = [
+        CircleZone(
+            latitude=math.radians(z.center_latitude_deg),
+            longitude=math.radians(z.center_longitude_deg),
+            radius=_zone_radius_rad(z, planet.radius_m),
+            name=z.name,
+        )
+        for z in doc.no_fly_zones
+    ]
+    waypoints = [
+        CircleZone(
+            latitude=math.radians(w.latitude_deg),
+            longitude=math.radians(w.longitude_deg),
+            radius=_zone_radius_rad(w, planet.radius_m),
+            order=w.order,
+        )
+        for w in sorted(doc.waypoints, key=lambda w: w.order)
+    ]
+    return EntryProblem(
+        document=doc,
+        scales=scales,
+        forces=forces,
+        omega=omega,
+        limits=limits,
+        heat_model=heat_model,
+        bank_max=math.radians(doc.control_limits.bank_max_deg),
+        bank_rate_max=(
+            math.radians(doc.control_limits.bank_rate_max_deg_s) * scales.time_s
+            if doc.control_limits.bank_rate_max_deg_s is not None
+            else None
+        ),
+        y0=y0,
+        t0=s0.time_s,
+        terminal=terminal,
+        final_time=final_time,
+        energy_initial=energy_initial,
+        energy_final=energy_final,
+        objective=[ObjectiveTerm(t.name, t.weight) for t in doc.objective.terms],
+        no_fly_zones=zones,
+        waypoints=waypoints,
+        alpha_optimized=schedule is None,
+    )

@@ -1,0 +1,1 @@
+"""SCP strategies: the outer loops that linearize, solve a conic subproblem, and update."""

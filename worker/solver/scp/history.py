@@ -1,0 +1,32 @@
+"""Per-iteration convergence record shared by every SCP strategy."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+
+@dataclass
+class IterationRecord:
+    """One SCP iteration, as stored in the job's history and streamed to clients."""
+
+    iteration: int
+    cost: float  # subproblem objective (normalized units)
+    cost_terms: dict[str, float]
+    objective_value: float | None  # the problem's own objective on the new reference, SI units
+    max_state_change: dict[str, float]  # per state, SI/degrees
+    trust_region_slack: float  # sum of squared scaled state changes (paper 000 eq. 31's t_i)
+    virtual_control_norm: float
+    linearization_error: float  # largest |f - f_L| over nodes and states (nondimensional)
+    nodes_post_corrected: int  # (node, state) pairs whose step was shortened (paper 000 sec. 3.4)
+    relaxation_gap: float  # largest 1 - |u| over nodes (0 when the control cone is tight)
+    conic_status: str
+    conic_solver: str
+    conic_solve_s: float
+    conic_setup_s: float
+    iteration_wall_s: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return asdict(self)

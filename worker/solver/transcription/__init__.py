@@ -1,0 +1,1 @@
+"""Transcriptions: how a continuous entry problem becomes one finite conic subproblem."""

@@ -1,0 +1,35 @@
+"""Nondimensional units of the entry problem: length R0, speed sqrt(R0 g0), time sqrt(R0/g0)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Reference scales used by every formulation (paper 000 sec. 2.1, the usual Vinh/Lu choice)."""
+
+    radius_m: float
+    g0_m_s2: float
+
+    @property
+    def length_m(self) -> float:
+        return self.radius_m
+
+    @property
+    def speed_m_s(self) -> float:
+        return math.sqrt(self.radius_m * self.g0_m_s2)
+
+    @property
+    def time_s(self) -> float:
+        return math.sqrt(self.radius_m / self.g0_m_s2)
+
+    @property
+    def rate_rad_s(self) -> float:
+        """Angular rate scale sqrt(g0/R0), used for the planet's rotation rate."""
+        return math.sqrt(self.g0_m_s2 / self.radius_m)
+
+    def energy(self, radius_nd: float, speed_nd: float) -> float:
+        """Energy-like variable e = 1/r - V^2/2 (paper 000 eq. 7), nondimensional."""
+        return 1.0 / radius_nd - 0.5 * speed_nd * speed_nd

@@ -1,0 +1,234 @@
+"""Verification: integrate the returned controls through the full nonlinear time-domain dynamics.
+
+Applied to every result of every method. The bank profile is interpolated linearly in the
+method's own independent variable (energy for energy-domain methods, time otherwise), evaluated
+on the propagated state, and the integration (scipy DOP853, rtol 1e-10) stops where the method's
+trajectory ends (final energy or final time). The report compares the propagated end state with
+the targets and with the optimized trajectory, measures the largest deviation along the path,
+the path-limit maxima on a dense grid between nodes and the no-fly-zone clearance.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from worker.solver.dynamics import time_dynamics
+from worker.solver.path_limits import path_values
+from worker.solver.problem import STATE_NAMES, EntryProblem
+
+Array = np.ndarray
+GridKind = Literal["energy", "time"]
+
+
+@dataclass(frozen=True)
+class VerificationTolerances:
+    """What 'feasible' means: terminal errors, relative path-limit excess, zone intrusion."""
+
+    altitude_m: float = 500.0
+    longitude_deg: float = 0.1
+    latitude_deg: float = 0.1
+    velocity_m_s: float = 10.0
+    flight_path_angle_deg: float = 0.3
+    heading_deg: float = 0.3
+    path_limit_relative: float = 0.01
+    no_fly_zone_deg: float = 0.05
+
+
+@dataclass
+class OptimizedTrajectory:
+    """The optimizer's nodes in time-form states (nondimensional) with their grid and bank."""
+
+    grid_kind: GridKind
+    grid: Array  # (K,) energy or nondimensional time since the start
+    y: Array  # (K, 6)
+    t: Array  # (K,) nondimensional time since the start
+    bank: Array  # (K,) radians
+    alpha_deg: Array | None = None  # (K,) when alpha is a decision variable
+
+
+def _energy(y: Array) -> Array:
+    return 1.0 / y[0] - 0.5 * y[3] ** 2
+
+
+def _to_si(problem: EntryProblem, y: Array) -> dict[str, float]:
+    """One time-form state in the API's units."""
+    return {
+        "altitude_m": float((y[0] - 1.0) * problem.scales.radius_m),
+        "longitude_deg": math.degrees(y[1]),
+        "latitude_deg": math.degrees(y[2]),
+        "velocity_m_s": float(y[3] * problem.scales.speed_m_s),
+        "flight_path_angle_deg": math.degrees(y[4]),
+        "heading_deg": math.degrees(y[5]),
+    }
+
+
+def propagate(
+    problem: EntryProblem, traj: OptimizedTrajectory, *, rtol: float = 1e-10, atol: float = 1e-12
+) -> Any:
+    """Integrate the time-domain dynamics under the trajectory's bank profile; scipy's solution."""
+    forces, omega = problem.forces, problem.omega
+    grid = traj.grid
+    bank = traj.bank
+    alpha_nodes = traj.alpha_deg
+    by_energy = traj.grid_kind == "energy"
+    u = np.zeros((1, 2))
+
+    def rhs(t: float, y: Array) -> Array:
+        s = _energy(y) if by_energy else t
+        sigma = np.interp(s, grid, bank)
+        u[0, 0], u[0, 1] = math.cos(sigma), math.sin(sigma)
+        alpha = None if alpha_nodes is None else np.array([np.interp(s, grid, alpha_nodes)])
+        return time_dynamics(y[None, :], u, forces, omega, alpha, jacobians=False).f[0]
+
+    def ground(t: float, y: Array) -> float:
+        return float(y[0] - 1.0)
+
+    ground.terminal = True  # type: ignore[attr-defined]
+    events: list[Any] = [ground]
+    if by_energy:
+        e_final = float(grid[-1])
+
+        def final_energy(t: float, y: Array) -> float:
+            return float(_energy(y) - e_final)
+
+        final_energy.terminal = True  # type: ignore[attr-defined]
+        final_energy.direction = 1.0  # type: ignore[attr-defined]
+        events.append(final_energy)
+        t_end = 3.0 * float(traj.t[-1]) + 1.0
+    else:
+        t_end = float(grid[-1])
+    return solve_ivp(
+        rhs, (0.0, t_end), problem.y0, method="DOP853", rtol=rtol, atol=atol,
+        events=events, dense_output=True,
+    )  # fmt: skip
+
+
+def _great_circle(lat1: Array, lon1: Array, lat2: float, lon2: float) -> Array:
+    """Central angle (rad) between points, haversine form."""
+    a = np.sin((lat2 - lat1) / 2) ** 2 + np.cos(lat1) * np.cos(lat2) * np.sin((lon2 - lon1) / 2) ** 2
+    return 2.0 * np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0)))
+
+
+def verify(
+    problem: EntryProblem,
+    traj: OptimizedTrajectory,
+    tolerances: VerificationTolerances | None = None,
+    samples_per_interval: int = 20,
+) -> dict[str, Any]:
+    """Propagate ``traj``'s controls and report errors, path maxima, zone clearance, feasibility."""
+    tol = tolerances or VerificationTolerances()
+    sol = propagate(problem, traj)
+    sc = problem.scales
+    t_final = float(sol.t[-1])
+    y_final = sol.y[:, -1]
+    reached_end = sol.status == 1 and (len(sol.t_events) > 1 and sol.t_events[-1].size > 0)
+    if traj.grid_kind == "time":
+        reached_end = sol.status == 0
+    final_si = _to_si(problem, y_final)
+    opt_final_si = _to_si(problem, traj.y[-1])
+    tol_map = {name: getattr(tol, name) for name in STATE_NAMES}
+
+    terminal_vs_target: dict[str, Any] = {}
+    hard_ok = True
+    for name in STATE_NAMES:
+        spec = problem.document.terminal.__getattribute__(name)
+        value = final_si[name]
+        if spec.kind == "free":
+            continue
+        if spec.kind == "range":
+            err = max(spec.lo - value, value - spec.hi, 0.0)
+        else:
+            err = value - spec.value
+        within = abs(err) <= tol_map[name]
+        if spec.kind in ("fixed", "range"):
+            hard_ok &= within
+        terminal_vs_target[name] = {"kind": spec.kind, "error": err, "tolerance": tol_map[name], "within": within}
+
+    terminal_vs_opt = {name: final_si[name] - opt_final_si[name] for name in STATE_NAMES}
+    terminal_vs_opt["time_s"] = (t_final - float(traj.t[-1])) * sc.time_s
+
+    # deviation along the path at the optimizer's nodes
+    if traj.grid_kind == "energy":
+        t_dense = np.linspace(0.0, t_final, 40 * traj.grid.size)
+        e_dense = _energy(sol.sol(t_dense))
+        order = np.maximum.accumulate(e_dense)  # energy increases; guard against tiny wiggles
+        t_nodes = np.interp(traj.grid, order, t_dense)
+    else:
+        t_nodes = np.clip(traj.grid, 0.0, t_final)
+    y_nodes = sol.sol(t_nodes).T
+    dev = np.abs(y_nodes - traj.y)
+    deviation = {
+        "altitude_m": float(np.max(dev[:, 0]) * sc.radius_m),
+        "longitude_deg": math.degrees(np.max(dev[:, 1])),
+        "latitude_deg": math.degrees(np.max(dev[:, 2])),
+        "velocity_m_s": float(np.max(dev[:, 3]) * sc.speed_m_s),
+        "flight_path_angle_deg": math.degrees(np.max(dev[:, 4])),
+        "heading_deg": math.degrees(np.max(dev[:, 5])),
+    }
+
+    # path limits on a dense grid between the nodes of the propagated trajectory
+    t_fine = np.unique(
+        np.concatenate(
+            [np.linspace(a, b, samples_per_interval + 1) for a, b in zip(t_nodes[:-1], t_nodes[1:], strict=True)]
+        )
+    )
+    t_fine = t_fine[t_fine <= t_final]
+    y_fine = sol.sol(t_fine).T
+    alpha = None
+    if traj.alpha_deg is not None:
+        s_fine = np.array([_energy(y) for y in y_fine]) if traj.grid_kind == "energy" else t_fine
+        alpha = np.interp(s_fine, traj.grid, traj.alpha_deg)
+    ft = problem.forces.terms(y_fine[:, 0], y_fine[:, 3], alpha)
+    pv = path_values(problem.forces, problem.heat_model, y_fine[:, 0], y_fine[:, 3], ft)
+    lim = problem.limits
+    path: dict[str, Any] = {}
+    path_ok = True
+    for key, values, limit in (
+        ("heat_rate_W_m2", pv.heat_rate if problem.heat_model else None, lim.heat_max_W_m2),
+        ("dynamic_pressure_Pa", pv.dynamic_pressure, lim.dynamic_pressure_max_Pa),
+        ("load_factor_g", pv.load_factor, lim.load_factor_max_g),
+    ):
+        if values is None:
+            continue
+        peak = float(np.max(values))
+        entry: dict[str, Any] = {"max": peak, "at_time_s": float(t_fine[int(np.argmax(values))] * sc.time_s)}
+        if limit is not None:
+            entry["limit"] = limit
+            entry["ratio"] = peak / limit
+            entry["within"] = peak <= limit * (1.0 + tol.path_limit_relative)
+            path_ok &= entry["within"]
+        path[key] = entry
+
+    zones = []
+    zones_ok = True
+    for z in problem.no_fly_zones:
+        d = _great_circle(y_fine[:, 2], y_fine[:, 1], z.latitude, z.longitude) - z.radius
+        clearance_deg = math.degrees(float(np.min(d)))
+        ok = clearance_deg >= -tol.no_fly_zone_deg
+        zones_ok &= ok
+        zones.append({"name": z.name, "min_clearance_deg": clearance_deg,
+                      "min_clearance_km": clearance_deg * math.pi / 180 * sc.radius_m / 1000, "within": ok})  # fmt: skip
+
+    heat_load = None
+    if problem.heat_model is not None:
+        q_nodes = pv.heat_rate
+        heat_load = float(np.trapezoid(q_nodes, t_fine) * sc.time_s)
+    feasible = bool(reached_end and hard_ok and path_ok and zones_ok)
+    return {
+        "feasible": feasible,
+        "reached_end": bool(reached_end),
+        "integrator": {"method": "DOP853", "rtol": 1e-10, "atol": 1e-12, "steps": int(sol.t.size)},
+        "tolerances": asdict(tol),
+        "final_state": {**final_si, "time_s": t_final * sc.time_s + problem.t0},
+        "terminal_error_vs_target": terminal_vs_target,
+        "terminal_error_vs_optimized": terminal_vs_opt,
+        "max_deviation_along_path": deviation,
+        "path_maxima": path,
+        "no_fly_zones": zones,
+        "heat_load_J_m2": heat_load,
+    }

@@ -1,0 +1,30 @@
+"""The Celery task: a thin wrapper that hands the job id to :func:`worker.jobs.execute_job`."""
+
+from __future__ import annotations
+
+from functools import cache
+
+from celery.exceptions import SoftTimeLimitExceeded
+
+from app.settings import get_settings
+from worker.celery_app import TASK_NAME, app
+from worker.jobs import execute_job
+from worker.notify import RedisNotifier
+from worker.solver import api as _solver_api  # noqa: F401  (loaded once, before the pool forks)
+
+
+@cache
+def _notifier(url: str) -> RedisNotifier:
+    return RedisNotifier(url)
+
+
+@app.task(name=TASK_NAME, acks_late=True, reject_on_worker_lost=True, ignore_result=True)
+def solve_job(job_id: str) -> str:
+    """Run the stored job ``job_id``; duplicate deliveries of a finished job do nothing."""
+    settings = get_settings()
+    return execute_job(
+        job_id,
+        settings=settings,
+        timeout_exceptions=(SoftTimeLimitExceeded,),
+        notify=_notifier(settings.broker_url),
+    )
