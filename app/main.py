@@ -9,7 +9,7 @@ from importlib import metadata
 
 from fastapi import FastAPI
 
-from app.dispatch import make_dispatcher
+from app.dispatch import Dispatcher, make_dispatcher
 from app.errors import install_error_handlers
 from app.events import PollingWaker, RedisWaker, Waker
 from app.metrics import build_registry
@@ -38,12 +38,12 @@ def _version() -> str:
         return "0.0.0"
 
 
-def build_service(settings: Settings) -> ServiceState:
+def build_service(settings: Settings, dispatcher: Dispatcher | None = None) -> ServiceState:
     """Open the database (migrating it if enabled), start the dispatcher, set up metrics."""
     database = get_database(settings.effective_database_url)
     if settings.auto_migrate:
         upgrade_database(database.engine)
-    dispatcher = make_dispatcher(settings)
+    dispatcher = dispatcher or make_dispatcher(settings)
     dispatcher.start()
     waker: Waker
     if settings.uses_broker:
@@ -59,13 +59,16 @@ def build_service(settings: Settings) -> ServiceState:
     )
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """A new application; services start in its lifespan (settings from the environment)."""
+def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None = None) -> FastAPI:
+    """A new application; services start in its lifespan.
+
+    ``settings`` default to the environment; ``dispatcher`` to Celery or the local pool.
+    """
     settings = settings or get_settings()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        service = build_service(settings)
+        service = build_service(settings, dispatcher)
         app.state.service = service
         log.info(
             "trajopt API ready: jobs run %s; database %s",

@@ -158,7 +158,7 @@ def _outcome_from_result(result: dict[str, Any], attempt: _Attempt) -> Outcome:
             None,
         )
     timing = result.get("timing") if isinstance(result.get("timing"), dict) else {}
-    wall = timing.get("wall_s") if timing else None
+    wall = timing.get("total_s", timing.get("wall_s")) if timing else None
     solve_s = float(wall) if isinstance(wall, int | float) else attempt.elapsed()
     return Outcome(
         status=status,

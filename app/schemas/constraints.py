@@ -15,9 +15,7 @@ class HeatRateLimit(StrictModel):
     Space Shuttle heating correction used by Wang, Leonard, Savvaris and Tsourdos.
     """
 
-    max_W_m2: float = Field(  # noqa: N815 (unit symbol W)
-        ..., gt=0, description="Largest admissible heat rate, W/m^2."
-    )
+    max_W_m2: float = Field(..., gt=0, description="Largest admissible heat rate, W/m^2.")
     k_q: float = Field(
         ...,
         gt=0,
@@ -37,9 +35,7 @@ class HeatRateLimit(StrictModel):
 class DynamicPressureLimit(StrictModel):
     """Dynamic pressure bound: rho V^2 / 2 <= max_Pa."""
 
-    max_Pa: float = Field(  # noqa: N815 (unit symbol Pa)
-        ..., gt=0, description="Largest admissible dynamic pressure, Pa."
-    )
+    max_Pa: float = Field(..., gt=0, description="Largest admissible dynamic pressure, Pa.")
 
 
 class LoadFactorLimit(StrictModel):

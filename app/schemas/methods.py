@@ -47,7 +47,7 @@ class EnergyScpOptions(StrictModel):
         121,
         ge=3,
         le=MAX_NODES,
-        description=f"Discretization nodes (grid points, so N + 1 for N intervals), 3..{MAX_NODES}.",
+        description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}.",
     )
     grid: Literal["time_adaptive", "uniform"] = Field(
         "time_adaptive",

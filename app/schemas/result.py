@@ -12,8 +12,11 @@ ResultStatus = Literal["succeeded", "failed", "cancelled", "timed_out"]
 class Failure(BaseModel):
     """Why a solve did not succeed: a stable code and a readable message."""
 
-    code: str = Field(..., description="e.g. infeasible, numerical_error, max_iterations, "
-                      "time_limit, verification_failed, cancelled, invalid_problem")  # fmt: skip
+    code: str = Field(
+        ...,
+        description="e.g. infeasible, numerical_error, max_iterations, "
+        "time_limit, verification_failed, cancelled, invalid_problem",
+    )
     message: str
 
 

@@ -37,13 +37,17 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
         reasons.append("the propagated trajectory did not reach the end of the optimized one")
     for name, entry in report["terminal_error_vs_target"].items():
         if entry["kind"] in ("fixed", "range") and not entry["within"]:
-            reasons.append(f"terminal {name} off by {entry['error']:.4g} (tolerance {entry['tolerance']:g})")
+            reasons.append(
+                f"terminal {name} off by {entry['error']:.4g} (tolerance {entry['tolerance']:g})"
+            )
     for name, entry in report["path_maxima"].items():
         if "within" in entry and not entry["within"]:
             reasons.append(f"{name} peaks at {entry['ratio']:.4f} of its limit")
     for zone in report["no_fly_zones"]:
         if not zone["within"]:
-            reasons.append(f"no-fly zone {zone['name'] or ''} entered by {-zone['min_clearance_deg']:.4f} deg")
+            reasons.append(
+                f"no-fly zone {zone['name'] or ''} entered by {-zone['min_clearance_deg']:.4f} deg"
+            )
     return reasons
 
 
@@ -66,11 +70,14 @@ def solve_problem(
     issues = check_support(problem)
     if issues:
         message = "; ".join(f"{i.field}: {i.message}" for i in issues)
-        return validated({
-            "status": "failed", "method": method,
-            "failure": {"code": "unsupported_by_method", "message": message},
-            "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
-        })  # fmt: skip
+        return validated(
+            {
+                "status": "failed",
+                "method": method,
+                "failure": {"code": "unsupported_by_method", "message": message},
+                "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
+            }
+        )
     model = build_problem(problem)
 
     def forward(record: IterationRecord) -> None:
@@ -102,7 +109,9 @@ def solve_problem(
         document["trajectory"] = trajectory_columns(model, traj)
         document["verification"] = report
         last = outcome.history[-1]
-        terms = {k.split(":", 1)[1]: v for k, v in last.cost_terms.items() if k.startswith("objective:")}
+        terms = {
+            k.split(":", 1)[1]: v for k, v in last.cost_terms.items() if k.startswith("objective:")
+        }
         single = len(terms) == 1
         name = next(iter(terms)) if single else "weighted_sum"
         document["objective"] = {

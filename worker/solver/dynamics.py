@@ -72,9 +72,12 @@ def time_dynamics(
     f[:, V] = -D - sg / r**2 + w2 * r * cf * wv
     # gamma' = L u1 / V + (V - 1/(r V)) cos(gamma)/r + 2 W cos(phi) sin(psi)
     #          + W^2 r cos(phi) (cos(gamma) cos(phi) + sin(gamma) cos(psi) sin(phi)) / V
-    f[:, GA] = L * u1 / v + (v - 1.0 / (r * v)) * cg / r + 2.0 * omega * cf * sp + w2 * r * cf * gg / v
+    f[:, GA] = (
+        L * u1 / v + (v - 1.0 / (r * v)) * cg / r + 2.0 * omega * cf * sp + w2 * r * cf * gg / v
+    )
     # psi' = L u2 / (V cos(gamma)) + V cos(gamma) sin(psi) tan(phi) / r
-    #        - 2 W (tan(gamma) cos(psi) cos(phi) - sin(phi)) + W^2 r sin(psi) sin(phi) cos(phi) / (V cos(gamma))
+    #        - 2 W (tan(gamma) cos(psi) cos(phi) - sin(phi))
+    #        + W^2 r sin(psi) sin(phi) cos(phi) / (V cos(gamma))
     f[:, PS] = L * u2 / (v * cg) + v * cg * sp * tf / r - 2.0 * omega * (tg * cp * cf - sf) + rot2
     if not jacobians:
         return TimeDerivatives(f=f, A=None, B=None, forces=ft)
@@ -100,11 +103,7 @@ def time_dynamics(
     A[:, GA, R] = ft.lift_r * u1 / v - v * cg / r**2 + 2.0 * cg / (r**3 * v) + w2 * cf * gg / v
     A[:, GA, PH] = -2.0 * omega * sf * sp + w2 * r / v * (-sf * gg + cf * (-cg * sf + sg * cp * cf))
     A[:, GA, V] = (
-        ft.lift_v * u1 / v
-        - L * u1 / v**2
-        + cg / r
-        + cg / (r**2 * v**2)
-        - w2 * r * cf * gg / v**2
+        ft.lift_v * u1 / v - L * u1 / v**2 + cg / r + cg / (r**2 * v**2) - w2 * r * cf * gg / v**2
     )
     A[:, GA, GA] = -v * sg / r + sg / (r**2 * v) + w2 * r * cf * (-sg * cf + cg * cp * sf) / v
     A[:, GA, PS] = 2.0 * omega * cf * cp - w2 * r * cf * sg * sp * sf / v
@@ -117,14 +116,18 @@ def time_dynamics(
         + w2 * r * sp * (cf * cf - sf * sf) / (v * cg)
     )
     A[:, PS, V] = ft.lift_v * u2 / (v * cg) - L * u2 / (v**2 * cg) + cg * sp * tf / r - rot2 / v
-    A[:, PS, GA] = L * u2 * sg / (v * cg**2) - v * sg * sp * tf / r - 2.0 * omega * cp * cf / cg**2 + rot2 * tg
-    A[:, PS, PS] = v * cg * cp * tf / r + 2.0 * omega * tg * sp * cf + w2 * r * cp * sf * cf / (v * cg)
+    A[:, PS, GA] = (
+        L * u2 * sg / (v * cg**2) - v * sg * sp * tf / r - 2.0 * omega * cp * cf / cg**2 + rot2 * tg
+    )
+    A[:, PS, PS] = (
+        v * cg * cp * tf / r + 2.0 * omega * tg * sp * cf + w2 * r * cp * sf * cf / (v * cg)
+    )
     B[:, PS, 1] = L / (v * cg)
     return TimeDerivatives(f=f, A=A, B=B, forces=ft)
 
 
 def speed_from_energy(r: Array, e: Array) -> tuple[Array, Array]:
-    """Exact V = sqrt(2 (1/r - e)) and dV/dr = -1/(r^2 V) (paper 000 eq. 8 without approximation)."""
+    """Exact V = sqrt(2 (1/r - e)) and dV/dr = -1/(r^2 V) (paper 000 eq. 8, not approximated)."""
     v = np.sqrt(2.0 * (1.0 / r - e))
     return v, -1.0 / (r * r * v)
 
@@ -171,6 +174,9 @@ def energy_dynamics(
     fx = td.f[:, idx]
     inv = 1.0 / edot
     f = fx * inv[:, None]
-    A = A_t[:, idx, :] * inv[:, None, None] - fx[:, :, None] * (edot_x * inv[:, None] ** 2)[:, None, :]
+    A = (
+        A_t[:, idx, :] * inv[:, None, None]
+        - fx[:, :, None] * (edot_x * inv[:, None] ** 2)[:, None, :]
+    )
     B = td.B[:, idx, :] * inv[:, None, None]
     return EnergyDerivatives(f=f, A=A, B=B, edot=edot, edot_x=edot_x, speed=v, time=td)

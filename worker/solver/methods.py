@@ -57,31 +57,64 @@ def _check_energy_scp(doc: ProblemDocument) -> list[FieldIssue]:
     name = "energy-scp"
     out: list[FieldIssue] = []
     if doc.final_time.kind == "fixed":
-        out.append(_issue("final_time", f"{name} cannot fix the final time: energy is its "
-                          "independent variable and time is an outcome; leave final_time free"))  # fmt: skip
+        out.append(
+            _issue(
+                "final_time",
+                f"{name} cannot fix the final time: energy is its "
+                "independent variable and time is an outcome; leave final_time free",
+            )
+        )
     if doc.vehicle.angle_of_attack.mode == "optimized":
-        out.append(_issue("vehicle.angle_of_attack", f"{name} flies a scheduled angle of attack; "
-                          "give a velocity_schedule, table or constant"))  # fmt: skip
+        out.append(
+            _issue(
+                "vehicle.angle_of_attack",
+                f"{name} flies a scheduled angle of attack; "
+                "give a velocity_schedule, table or constant",
+            )
+        )
     if doc.vehicle.aerodynamics.model == "parabolic_polar":
-        out.append(_issue("vehicle.aerodynamics", f"{name} needs CL and CD as functions of angle "
-                          "of attack (polynomial or table), not a normalized-lift polar"))  # fmt: skip
+        out.append(
+            _issue(
+                "vehicle.aerodynamics",
+                f"{name} needs CL and CD as functions of angle "
+                "of attack (polynomial or table), not a normalized-lift polar",
+            )
+        )
     if doc.control_limits.bank_rate_max_deg_s is not None:
-        out.append(_issue("control_limits.bank_rate_max_deg_s", f"{name} has bank angle as a "
-                          "control, not a state, so it cannot limit its rate"))  # fmt: skip
+        out.append(
+            _issue(
+                "control_limits.bank_rate_max_deg_s",
+                f"{name} has bank angle as a control, not a state, so it cannot limit its rate",
+            )
+        )
     if doc.control_limits.alpha_rate_max_deg_s is not None:
-        out.append(_issue("control_limits.alpha_rate_max_deg_s", f"{name} does not optimize the "
-                          "angle of attack"))  # fmt: skip
+        out.append(
+            _issue(
+                "control_limits.alpha_rate_max_deg_s",
+                f"{name} does not optimize the angle of attack",
+            )
+        )
     if doc.no_fly_zones:
         out.append(_issue("no_fly_zones", f"{name} does not handle no-fly zones"))
     if doc.waypoints:
         out.append(_issue("waypoints", f"{name} does not handle waypoints"))
     for i, term in enumerate(doc.objective.terms):
         if term.name not in ENERGY_SCP_OBJECTIVES:
-            out.append(_issue(f"objective.terms[{i}].name", f"{name} cannot minimize "
-                              f"{term.name!r}; it supports {', '.join(ENERGY_SCP_OBJECTIVES)}"))  # fmt: skip
+            out.append(
+                _issue(
+                    f"objective.terms[{i}].name",
+                    f"{name} cannot minimize "
+                    f"{term.name!r}; it supports {', '.join(ENERGY_SCP_OBJECTIVES)}",
+                )
+            )
         if term.name == "min_heat_load" and doc.path_constraints.heat_rate is None:
-            out.append(_issue("path_constraints.heat_rate", "min_heat_load needs the heating "
-                              "model (k_q and exponents) in path_constraints.heat_rate"))  # fmt: skip
+            out.append(
+                _issue(
+                    "path_constraints.heat_rate",
+                    "min_heat_load needs the heating "
+                    "model (k_q and exponents) in path_constraints.heat_rate",
+                )
+            )
     # energy bounds: e = R0/r - V^2 / (2 g0 R0) (paper 000 eq. 7)
     planet = doc.planet
     g0r = planet.surface_gravity_m_s2 * planet.radius_m
@@ -89,33 +122,61 @@ def _check_energy_scp(doc: ProblemDocument) -> list[FieldIssue]:
     e0 = planet.radius_m / (planet.radius_m + s0.altitude_m) - s0.velocity_m_s**2 / (2.0 * g0r)
     energy = doc.energy
     if energy is not None and energy.initial is not None and abs(energy.initial - e0) > 1e-4:
-        out.append(_issue("energy.initial", f"energy.initial {energy.initial} disagrees with the "
-                          f"initial state's energy {e0:.6f}; omit it or make them agree",
-                          "inconsistent"))  # fmt: skip
+        out.append(
+            _issue(
+                "energy.initial",
+                f"energy.initial {energy.initial} disagrees with the "
+                f"initial state's energy {e0:.6f}; omit it or make them agree",
+                "inconsistent",
+            )
+        )
     alt = doc.terminal.altitude_m
     vel = doc.terminal.velocity_m_s
     ef: float | None = None
     if energy is not None and energy.final is not None:
         ef = energy.final
         if vel.kind != "free":
-            out.append(_issue("terminal.velocity_m_s", "the terminal speed follows from "
-                              "energy.final and the terminal altitude; leave it free",
-                              "inconsistent"))  # fmt: skip
+            out.append(
+                _issue(
+                    "terminal.velocity_m_s",
+                    "the terminal speed follows from "
+                    "energy.final and the terminal altitude; leave it free",
+                    "inconsistent",
+                )
+            )
     elif alt.kind == "fixed" and vel.kind == "fixed":
         rf = planet.radius_m / (planet.radius_m + alt.value)
         ef = rf - vel.value**2 / (2.0 * g0r)
     else:
-        out.append(_issue("energy.final", f"{name} needs the final energy: give energy.final, "
-                          "or a fixed terminal altitude and speed", "missing"))  # fmt: skip
+        out.append(
+            _issue(
+                "energy.final",
+                f"{name} needs the final energy: give energy.final, "
+                "or a fixed terminal altitude and speed",
+                "missing",
+            )
+        )
     if ef is not None:
         if ef <= e0:
-            out.append(_issue("energy.final", f"final energy {ef:.6f} is not above the initial "
-                              f"energy {e0:.6f}: energy increases during entry", "inconsistent"))  # fmt: skip
+            out.append(
+                _issue(
+                    "energy.final",
+                    f"final energy {ef:.6f} is not above the initial "
+                    f"energy {e0:.6f}: energy increases during entry",
+                    "inconsistent",
+                )
+            )
         if alt.kind in ("fixed", "range", "soft"):
             lowest = alt.value if alt.kind != "range" else alt.lo
             if planet.radius_m / (planet.radius_m + lowest) <= ef:
-                out.append(_issue("terminal.altitude_m", f"at final energy {ef:.6f} the terminal "
-                                  "altitude leaves no kinetic energy (V^2 <= 0)", "inconsistent"))  # fmt: skip
+                out.append(
+                    _issue(
+                        "terminal.altitude_m",
+                        f"at final energy {ef:.6f} the terminal "
+                        "altitude leaves no kinetic energy (V^2 <= 0)",
+                        "inconsistent",
+                    )
+                )
     return out
 
 

@@ -42,7 +42,9 @@ class RunningCost:
     gradient: Array
 
 
-def energy_running_cost(problem: EntryProblem, name: str, x: Array, ed: EnergyDerivatives) -> RunningCost:
+def energy_running_cost(
+    problem: EntryProblem, name: str, x: Array, ed: EnergyDerivatives
+) -> RunningCost:
     """Heat-load or time density along energy nodes, with its gradient in x."""
     t_scale = problem.scales.time_s
     inv = 1.0 / ed.edot
@@ -56,12 +58,14 @@ def energy_running_cost(problem: EntryProblem, name: str, x: Array, ed: EnergyDe
         raise ValueError("min_heat_load needs path_constraints.heat_rate (the heating model)")
     r = x[:, 0]
     v = ed.speed
-    pv = path_values(problem.forces, problem.heat_model, r, v, ed.time.forces)
+    pv = path_values(problem.forces, problem.heat_model, r, v, problem.forces.terms(r, v))
     v_r = -1.0 / (r * r * v)
     qdot_x = np.zeros_like(x)
     qdot_x[:, 0] = pv.heat_rate_r + pv.heat_rate_v * v_r
     density = t_scale * pv.heat_rate * inv
-    gradient = t_scale * (qdot_x * inv[:, None] - pv.heat_rate[:, None] * ed.edot_x * (inv * inv)[:, None])
+    gradient = t_scale * (
+        qdot_x * inv[:, None] - pv.heat_rate[:, None] * ed.edot_x * (inv * inv)[:, None]
+    )
     return RunningCost(density, gradient)
 
 

@@ -21,8 +21,14 @@ from worker.solver.path_limits import HeatRateModel, PathLimits
 from worker.solver.units import Scales
 
 TerminalKind = Literal["fixed", "range", "free", "soft"]
-STATE_NAMES = ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s",
-               "flight_path_angle_deg", "heading_deg")  # fmt: skip
+STATE_NAMES = (
+    "altitude_m",
+    "longitude_deg",
+    "latitude_deg",
+    "velocity_m_s",
+    "flight_path_angle_deg",
+    "heading_deg",
+)
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ the path-limit maxima on a dense grid between nodes and the no-fly-zone clearanc
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
@@ -103,14 +104,23 @@ def propagate(
     else:
         t_end = float(grid[-1])
     return solve_ivp(
-        rhs, (0.0, t_end), problem.y0, method="DOP853", rtol=rtol, atol=atol,
-        events=events, dense_output=True,
-    )  # fmt: skip
+        rhs,
+        (0.0, t_end),
+        problem.y0,
+        method="DOP853",
+        rtol=rtol,
+        atol=atol,
+        events=events,
+        dense_output=True,
+    )
 
 
 def _great_circle(lat1: Array, lon1: Array, lat2: float, lon2: float) -> Array:
     """Central angle (rad) between points, haversine form."""
-    a = np.sin((lat2 - lat1) / 2) ** 2 + np.cos(lat1) * np.cos(lat2) * np.sin((lon2 - lon1) / 2) ** 2
+    a = (
+        np.sin((lat2 - lat1) / 2) ** 2
+        + np.cos(lat1) * np.cos(lat2) * np.sin((lon2 - lon1) / 2) ** 2
+    )
     return 2.0 * np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0)))
 
 
@@ -147,7 +157,12 @@ def verify(
         within = abs(err) <= tol_map[name]
         if spec.kind in ("fixed", "range"):
             hard_ok &= within
-        terminal_vs_target[name] = {"kind": spec.kind, "error": err, "tolerance": tol_map[name], "within": within}
+        terminal_vs_target[name] = {
+            "kind": spec.kind,
+            "error": err,
+            "tolerance": tol_map[name],
+            "within": within,
+        }
 
     terminal_vs_opt = {name: final_si[name] - opt_final_si[name] for name in STATE_NAMES}
     terminal_vs_opt["time_s"] = (t_final - float(traj.t[-1])) * sc.time_s
@@ -174,7 +189,7 @@ def verify(
     # path limits on a dense grid between the nodes of the propagated trajectory
     t_fine = np.unique(
         np.concatenate(
-            [np.linspace(a, b, samples_per_interval + 1) for a, b in zip(t_nodes[:-1], t_nodes[1:], strict=True)]
+            [np.linspace(a, b, samples_per_interval + 1) for a, b in itertools.pairwise(t_nodes)]
         )
     )
     t_fine = t_fine[t_fine <= t_final]
@@ -196,7 +211,10 @@ def verify(
         if values is None:
             continue
         peak = float(np.max(values))
-        entry: dict[str, Any] = {"max": peak, "at_time_s": float(t_fine[int(np.argmax(values))] * sc.time_s)}
+        entry: dict[str, Any] = {
+            "max": peak,
+            "at_time_s": float(t_fine[int(np.argmax(values))] * sc.time_s),
+        }
         if limit is not None:
             entry["limit"] = limit
             entry["ratio"] = peak / limit
@@ -211,8 +229,14 @@ def verify(
         clearance_deg = math.degrees(float(np.min(d)))
         ok = clearance_deg >= -tol.no_fly_zone_deg
         zones_ok &= ok
-        zones.append({"name": z.name, "min_clearance_deg": clearance_deg,
-                      "min_clearance_km": clearance_deg * math.pi / 180 * sc.radius_m / 1000, "within": ok})  # fmt: skip
+        zones.append(
+            {
+                "name": z.name,
+                "min_clearance_deg": clearance_deg,
+                "min_clearance_km": clearance_deg * math.pi / 180 * sc.radius_m / 1000,
+                "within": ok,
+            }
+        )
 
     heat_load = None
     if problem.heat_model is not None:

@@ -30,13 +30,13 @@ from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
 from worker.solver.scp.history import IterationRecord
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
-from worker.solver.verification import OptimizedTrajectory
 from worker.solver.transcription.energy_trapezoid import (
     NX,
     EnergyTrapezoid,
     SubproblemData,
     TerminalRow,
 )
+from worker.solver.verification import OptimizedTrajectory
 
 Array = np.ndarray
 ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed_out"]
@@ -44,9 +44,17 @@ ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed
 # Scale of each energy-form state [r, theta, phi, gamma, psi]: the unit of the scaled deviation
 # in the subproblem and so of the trust region (6.4 km in radius, 1 deg in the angles, 0.5 deg
 # in flight-path angle, which moves least).
-STATE_SCALE = np.array([1.0e-3, math.radians(1.0), math.radians(1.0), math.radians(0.5), math.radians(1.0)])
+STATE_SCALE = np.array(
+    [1.0e-3, math.radians(1.0), math.radians(1.0), math.radians(0.5), math.radians(1.0)]
+)
 REGRID_AFTER = 2
-TERMINAL_KEYS = ("altitude_m", "longitude_deg", "latitude_deg", "flight_path_angle_deg", "heading_deg")
+TERMINAL_KEYS = (
+    "altitude_m",
+    "longitude_deg",
+    "latitude_deg",
+    "flight_path_angle_deg",
+    "heading_deg",
+)
 
 
 @dataclass
@@ -74,7 +82,9 @@ def energy_bounds(problem: EntryProblem) -> tuple[float, float]:
     alt = problem.terminal["altitude_m"]
     vel = problem.terminal["velocity_m_s"]
     if alt.kind != "fixed" or vel.kind != "fixed" or alt.value is None or vel.value is None:
-        raise ValueError("the final energy needs energy.final or a fixed terminal altitude and speed")
+        raise ValueError(
+            "the final energy needs energy.final or a fixed terminal altitude and speed"
+        )
     return e0, 1.0 / alt.value - 0.5 * vel.value**2
 
 
@@ -92,7 +102,7 @@ def _terminal_rows(problem: EntryProblem) -> list[TerminalRow]:
 
 
 def initial_guess(problem: EntryProblem, e: Array) -> tuple[Array, Array]:
-    """Straight line from the initial to the terminal state in energy, zero control (paper 000 sec. 4)."""
+    """Straight line from initial to terminal state in energy, zero control (paper 000 sec. 4)."""
     x0 = problem.y0[[0, 1, 2, 4, 5]]
     xf = x0.copy()
     for j, key in enumerate(TERMINAL_KEYS):
@@ -136,11 +146,29 @@ class _Objective:
         out: dict[str, float] = {}
         for t in self.problem.objective:
             if t.name in RUNNING_COSTS:
-                out[t.name] = trapezoid(energy_running_cost(self.problem, t.name, x, ed).density, self.e)
+                out[t.name] = trapezoid(
+                    energy_running_cost(self.problem, t.name, x, ed).density, self.e
+                )
             else:
                 idx, _ = TERMINAL_COSTS[t.name]
                 out[t.name] = math.degrees(float(x[-1, idx]))
         return out
+
+
+def _splice(base: EnergyDerivatives, rows: Array, part: EnergyDerivatives) -> EnergyDerivatives:
+    """``base`` with the node rows ``rows`` replaced by ``part`` (same fields)."""
+    out = EnergyDerivatives(
+        f=base.f.copy(),
+        A=base.A.copy(),
+        B=base.B.copy(),
+        edot=base.edot.copy(),
+        edot_x=base.edot_x.copy(),
+        speed=base.speed.copy(),
+        time=base.time,
+    )
+    for name in ("f", "A", "B", "edot", "edot_x", "speed"):
+        getattr(out, name)[rows] = getattr(part, name)
+    return out
 
 
 def _state_change(dx: Array, problem: EntryProblem) -> dict[str, float]:
@@ -190,20 +218,25 @@ def run_energy_scp(
         if not np.all(feasible):
             bad = int(np.argmin(feasible))
             return ScpOutcome(
-                "failed", e, *initial_guess(problem, e), [],
+                "failed",
+                e,
+                *initial_guess(problem, e),
+                [],
                 failure_code="path_limits_infeasible",
                 failure_message=(
                     f"no altitude satisfies the path limits at energy {e[bad]:.4f} "
                     f"(node {bad}); raise the limits or change the energy range"
                 ),
-            )  # fmt: skip
+            )
     terminal = _terminal_rows(problem)
     vc_mode = options.virtual_control
     use_vc = vc_mode == "on"
 
     def make_transcription(vc: bool) -> EnergyTrapezoid:
         return EnergyTrapezoid(
-            e, STATE_SCALE, terminal,
+            e,
+            STATE_SCALE,
+            terminal,
             bank_max=problem.bank_max,
             path_limits=r_lower is not None,
             virtual_control=vc,
@@ -211,7 +244,7 @@ def run_energy_scp(
             weight_regularization=options.weight_regularization,
             weight_virtual_control=options.weight_virtual_control,
             weight_control_smoothness=options.weight_control_smoothness,
-        )  # fmt: skip
+        )
 
     tr = make_transcription(use_vc)
     node_step = tr.quad_w
@@ -225,7 +258,9 @@ def run_energy_scp(
     x_sol, u_sol = x_ref, u_ref
     deadline = start + options.time_limit_s
 
-    def outcome(status: ScpStatus, code: str | None = None, message: str | None = None) -> ScpOutcome:
+    def outcome(
+        status: ScpStatus, code: str | None = None, message: str | None = None
+    ) -> ScpOutcome:
         return ScpOutcome(
             status, e, x_sol, u_sol, history, code, message, conic_total, tr.virtual_control
         )
@@ -236,19 +271,35 @@ def run_energy_scp(
             return outcome("cancelled", "cancelled", f"cancelled before iteration {k}")
         remaining = deadline - it_start
         if remaining <= 0:
-            return outcome("timed_out", "time_limit", f"time limit {options.time_limit_s} s reached after {k - 1} iterations")
+            return outcome(
+                "timed_out",
+                "time_limit",
+                f"time limit {options.time_limit_s} s reached after {k - 1} iterations",
+            )
         run_grad, term_grad = objective.gradients(x_ref, ed)
         data = SubproblemData(
-            x_ref=x_ref, u_ref=u_ref, f=ed.f, A=ed.A, B=ed.B,
-            cost_gradient=run_grad, terminal_gradient=term_grad,
-            radius_lower=r_lower, x0=x0,
-        )  # fmt: skip
-        limit = remaining if options.conic_time_limit_s is None else min(remaining, options.conic_time_limit_s)
+            x_ref=x_ref,
+            u_ref=u_ref,
+            f=ed.f,
+            A=ed.A,
+            B=ed.B,
+            cost_gradient=run_grad,
+            terminal_gradient=term_grad,
+            radius_lower=r_lower,
+            x0=x0,
+        )
+        limit = (
+            remaining
+            if options.conic_time_limit_s is None
+            else min(remaining, options.conic_time_limit_s)
+        )
         sol = backend.solve(tr.build(data), time_limit_s=limit)
         conic_total += sol.solve_time_s
         if sol.status == ConicStatus.INFEASIBLE and vc_mode == "auto" and not tr.virtual_control:
             tr = make_transcription(True)
-            sol2 = backend.solve(tr.build(data), time_limit_s=max(deadline - time.perf_counter(), 1e-3))
+            sol2 = backend.solve(
+                tr.build(data), time_limit_s=max(deadline - time.perf_counter(), 1e-3)
+            )
             conic_total += sol2.solve_time_s
             sol = sol2
         if not sol.status.usable or sol.x is None:
@@ -257,34 +308,56 @@ def run_energy_scp(
                 ConicStatus.TIME_LIMIT: "time_limit",
             }.get(sol.status, "numerical_error")
             status: ScpStatus = "timed_out" if code == "time_limit" else "failed"
-            return outcome(status, code, f"iteration {k}: conic subproblem {sol.status.value} ({sol.solver}: {sol.raw_status})")
+            return outcome(
+                status,
+                code,
+                f"iteration {k}: conic subproblem {sol.status.value} "
+                f"({sol.solver}: {sol.raw_status})",
+            )
         z = sol.x
         sub = tr.unpack(z, data)
         # post-correction (paper 000 eq. 38 and the state update algorithm)
         ed_new = energy_dynamics(sub.x, sub.u, e, forces, omega)
-        f_lin = ed.f + np.einsum("kij,kj->ki", ed.A, sub.x - x_ref) + np.einsum("kij,kj->ki", ed.B, sub.u - u_ref)
+        f_lin = (
+            ed.f
+            + np.einsum("kij,kj->ki", ed.A, sub.x - x_ref)
+            + np.einsum("kij,kj->ki", ed.B, sub.u - u_ref)
+        )
         lin_err = np.abs(ed_new.f - f_lin) * node_step[:, None] / STATE_SCALE[None, :]
         corrected = np.zeros_like(lin_err, dtype=bool)
         x_next = sub.x
         if options.post_correction:
             corrected = lin_err > options.linearization_error_threshold
             corrected[0] = False
-            x_next = np.where(corrected, x_ref + options.post_correction_step * (sub.x - x_ref), sub.x)
+            x_next = np.where(
+                corrected, x_ref + options.post_correction_step * (sub.x - x_ref), sub.x
+            )
         dx = x_next - x_ref
         change = np.max(np.abs(dx), axis=0)
         x_sol, u_sol = sub.x, sub.u
         x_ref, u_ref = x_next, sub.u
-        ed = energy_dynamics(x_ref, u_ref, e, forces, omega) if options.post_correction and corrected.any() else ed_new
+        ed = ed_new
+        rows = np.any(corrected, axis=1)
+        if rows.any():  # re-linearize only where post-correction moved the nodes
+            ed = _splice(
+                ed_new, rows, energy_dynamics(x_ref[rows], u_ref[rows], e[rows], forces, omega)
+            )
         values = objective.values(sub.x, ed_new)
-        vc_norm = float(np.sum(np.abs(sub.virtual_control))) if sub.virtual_control is not None else 0.0
+        vc_norm = (
+            float(np.sum(np.abs(sub.virtual_control))) if sub.virtual_control is not None else 0.0
+        )
         record = IterationRecord(
             iteration=k,
             cost=float(sol.objective if sol.objective is not None else np.nan),
             cost_terms={
                 **{f"objective:{n}": v for n, v in values.items()},
-                "soft_terminal": float(np.dot([t.weight for t in tr.soft], sub.soft_slacks)) if tr.soft else 0.0,
+                "soft_terminal": float(np.dot([t.weight for t in tr.soft], sub.soft_slacks))
+                if tr.soft
+                else 0.0,
                 "trust_region": float(options.weight_trust_region * np.sum(sub.dx_scaled**2)),
-                "virtual_control": options.weight_virtual_control * vc_norm if tr.virtual_control else 0.0,
+                "virtual_control": options.weight_virtual_control * vc_norm
+                if tr.virtual_control
+                else 0.0,
             },
             objective_value=next(iter(values.values())) if len(values) == 1 else None,
             max_state_change=_state_change(dx, problem),
@@ -319,7 +392,9 @@ def run_energy_scp(
             ed = energy_dynamics(x_ref, u_ref, e, forces, omega)
             regrid_done = k + 1
             record.extra["regrid"] = True
-    return outcome("max_iterations", "max_iterations", f"not converged in {options.max_iterations} iterations")
+    return outcome(
+        "max_iterations", "max_iterations", f"not converged in {options.max_iterations} iterations"
+    )
 
 
 def to_trajectory(problem: EntryProblem, outcome: ScpOutcome) -> OptimizedTrajectory:

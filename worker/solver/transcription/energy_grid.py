@@ -26,7 +26,9 @@ def energy_grid(e0: float, ef: float, nodes: int, kind: GridKind = "glide_time")
     v2 = np.clip(2.0 * (1.0 - fine), 1e-4, 0.98)  # guard the ends of the formula's validity
     density = 1.0 / ((1.0 - v2) * np.sqrt(v2))
     density = BLEND * density / np.mean(density) + (1.0 - BLEND)
-    cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(fine))])
+    cumulative = np.concatenate(
+        [[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(fine))]
+    )
     targets = np.linspace(0.0, cumulative[-1], nodes)
     grid = np.interp(targets, cumulative, fine)
     grid[0], grid[-1] = e0, ef

@@ -1,0 +1,158 @@
+"""Real services for the integration tests: PostgreSQL, Redis, a Celery worker and the API.
+
+Each run gets its own PostgreSQL schema, Redis database number and queue name, so concurrent
+runs do not collide. Unreachable services skip these tests locally and fail them under CI=true.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import uuid
+from collections.abc import Iterator
+from urllib.parse import quote
+
+import psycopg
+import pytest
+import redis
+
+from tests.integration.harness import ApiServer, ServiceClient, ServiceProcess, require
+
+SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
+
+
+def _admin_urls() -> list[str]:
+    given = os.environ.get("TEST_POSTGRES_URL")
+    if given:
+        return [given]
+    return [
+        "postgresql://postgres@127.0.0.1:5432/test",
+        "postgresql://root@127.0.0.1:5432/test",
+    ]
+
+
+@pytest.fixture(scope="session")
+def pg_admin_url() -> str:
+    """A PostgreSQL URL that can create schemas (trust auth on the loopback)."""
+    errors = []
+    for url in _admin_urls():
+        try:
+            with psycopg.connect(url, connect_timeout=3) as conn:
+                conn.execute("SELECT 1")
+            return url
+        except psycopg.Error as exc:
+            errors.append(f"{url}: {exc}".strip())
+    require("PostgreSQL", "; ".join(errors))
+    raise AssertionError("unreachable")
+
+
+def with_schema(url: str, schema: str) -> str:
+    """``url`` whose connections use ``schema`` first on the search path."""
+    sep = "&" if "?" in url else "?"
+    return f"{url}{sep}options={quote(f'-csearch_path={schema}')}"
+
+
+class PgSchemas:
+    """Creates throwaway schemas and drops them all at the end."""
+
+    def __init__(self, admin_url: str) -> None:
+        self.admin_url = admin_url
+        self.created: list[str] = []
+
+    def new(self, label: str) -> str:
+        schema = f"trajopt_{label}_{uuid.uuid4().hex[:10]}"
+        with psycopg.connect(self.admin_url, autocommit=True) as conn:
+            conn.execute(f'CREATE SCHEMA "{schema}"')
+        self.created.append(schema)
+        return with_schema(self.admin_url, schema)
+
+    def drop_all(self) -> None:
+        with psycopg.connect(self.admin_url, autocommit=True) as conn:
+            for schema in self.created:
+                conn.execute(f'DROP SCHEMA IF EXISTS "{schema}" CASCADE')
+
+
+@pytest.fixture(scope="session")
+def pg_schemas(pg_admin_url: str) -> Iterator[PgSchemas]:
+    schemas = PgSchemas(pg_admin_url)
+    yield schemas
+    schemas.drop_all()
+
+
+@pytest.fixture(scope="session")
+def redis_base_url() -> str:
+    """The Redis server, without a database number."""
+    url = os.environ.get("TEST_REDIS_URL", "redis://127.0.0.1:6379")
+    try:
+        redis.Redis.from_url(url, socket_connect_timeout=3).ping()
+    except redis.RedisError as exc:
+        require("Redis", str(exc))
+    return url.rstrip("/")
+
+
+@pytest.fixture(scope="session")
+def stack_env(
+    pg_schemas: PgSchemas, redis_base_url: str, tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, str]:
+    """Environment of the API and worker processes of this run."""
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
+    }
+    db_number = random.randint(1, 15)
+    env.update(
+        DATABASE_URL=pg_schemas.new("it"),
+        REDIS_URL=f"{redis_base_url}/{db_number}",
+        TRAJOPT_QUEUE_NAME=f"trajopt-it-{uuid.uuid4().hex[:10]}",
+        TRAJOPT_DATA_DIR=str(tmp_path_factory.mktemp("data")),
+        TRAJOPT_WORKER_MAX_TASKS_PER_CHILD="50",
+    )
+    return env
+
+
+@pytest.fixture(scope="session")
+def worker(
+    stack_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[ServiceProcess]:
+    """One Celery worker process (one pool child) against this run's Redis queue."""
+    log = tmp_path_factory.mktemp("logs") / "worker.log"
+    process = ServiceProcess(["-m", "app.cli", "worker", "--concurrency", "1"], stack_env, log)
+    process.start()
+    try:
+        process.wait_for_output(" ready.", timeout=90)
+        yield process
+    finally:
+        process.stop()
+        client = redis.Redis.from_url(stack_env["REDIS_URL"])
+        client.delete(stack_env["TRAJOPT_QUEUE_NAME"])
+        client.close()
+
+
+@pytest.fixture(scope="session")
+def api(
+    stack_env: dict[str, str], worker: ServiceProcess, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[ApiServer]:
+    """The API server of this run (tests may restart it)."""
+    server = ApiServer(stack_env, tmp_path_factory.mktemp("logs") / "api.log")
+    server.start_and_wait()
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def client(api: ApiServer) -> Iterator[ServiceClient]:
+    """An HTTP client of the running API."""
+    client = api.client()
+    yield client
+    client.close()
+
+
+@pytest.fixture(scope="session")
+def scenario() -> str:
+    """The built-in scenario the tests submit."""
+    from worker.solver.scenarios import list_scenarios
+
+    return list_scenarios()[0].name

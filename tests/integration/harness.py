@@ -1,0 +1,216 @@
+"""Helpers to run the service for real: free ports, subprocesses, HTTP and SSE clients.
+
+Shared by the integration tests (Redis + PostgreSQL + Celery worker) and the end-to-end tests
+(embedded mode). Processes run from the repository root with the current interpreter.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any, TextIO
+
+import httpx
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+TERMINAL = frozenset({"succeeded", "failed", "cancelled", "timed_out"})
+NEVER_CONVERGE = {
+    "altitude_m": 1e-9,
+    "longitude_deg": 1e-9,
+    "latitude_deg": 1e-9,
+    "flight_path_angle_deg": 1e-9,
+    "heading_deg": 1e-9,
+}
+"""A stop tolerance no iterate meets: the solve runs until cancelled or out of iterations."""
+
+
+def long_job(scenario: str) -> dict[str, Any]:
+    """A job that runs for many seconds, iterating all the while (for cancel tests)."""
+    method = {
+        "nodes": 200,
+        "max_iterations": 500,
+        "time_limit_s": 120,
+        "stop_tolerance": NEVER_CONVERGE,
+    }
+    return {"scenario": scenario, "method": method}
+
+
+def free_port() -> int:
+    """A TCP port on the loopback interface that nothing listens on right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def require(service: str, reason: str | None) -> None:
+    """Skip when ``service`` is unreachable (``reason`` set), but fail under ``CI=true``."""
+    if reason is None:
+        return
+    message = f"{service} is not reachable: {reason}"
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(message, pytrace=False)
+    pytest.skip(message)
+
+
+class ServiceProcess:
+    """A child process of the service with its output in a log file."""
+
+    def __init__(self, args: list[str], env: dict[str, str], log_path: Path) -> None:
+        self.args = args
+        self.env = env
+        self.log_path = log_path
+        self.process: subprocess.Popen[bytes] | None = None
+        self._log: TextIO | None = None
+
+    def start(self) -> None:
+        """Start the process (a new session, so it can be stopped with its children)."""
+        self._log = self.log_path.open("a", encoding="utf-8")
+        self.process = subprocess.Popen(
+            [sys.executable, *self.args],
+            cwd=REPO_ROOT,
+            env=self.env,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+
+    def log_text(self) -> str:
+        """Everything the process printed so far."""
+        return self.log_path.read_text(encoding="utf-8", errors="replace")
+
+    def alive(self) -> bool:
+        """Whether the process still runs."""
+        return self.process is not None and self.process.poll() is None
+
+    def stop(self, timeout: float = 20.0) -> None:
+        """SIGTERM the process group, then SIGKILL it if it does not exit in time."""
+        if self.process is not None and self.process.poll() is None:
+            try:
+                os.killpg(self.process.pid, signal.SIGTERM)
+                self.process.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait(timeout=timeout)
+            except ProcessLookupError:
+                pass
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    def wait_for_output(self, text: str, timeout: float) -> None:
+        """Block until ``text`` appears in the log; fail with the log if it does not."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if text in self.log_text():
+                return
+            if not self.alive():
+                break
+            time.sleep(0.1)
+        pytest.fail(f"{' '.join(self.args)} did not print {text!r}:\n{self.log_text()[-4000:]}")
+
+
+class ApiServer(ServiceProcess):
+    """``trajopt serve`` on a free loopback port."""
+
+    def __init__(self, env: dict[str, str], log_path: Path) -> None:
+        self.port = free_port()
+        self.base_url = f"http://127.0.0.1:{self.port}"
+        args = ["-m", "app.cli", "serve", "--host", "127.0.0.1", "--port", str(self.port)]
+        super().__init__(args, env, log_path)
+
+    def start_and_wait(self, timeout: float = 60.0) -> None:
+        """Start and wait until ``/readyz`` answers 200."""
+        self.start()
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if not self.alive():
+                break
+            try:
+                if httpx.get(f"{self.base_url}/readyz", timeout=2).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.2)
+        self.stop()
+        pytest.fail(f"the API did not become ready:\n{self.log_text()[-4000:]}")
+
+    def client(self) -> ServiceClient:
+        """An HTTP client of this server."""
+        return ServiceClient(self.base_url)
+
+
+class ServiceClient:
+    """Thin HTTP client of the job API used by the tests."""
+
+    def __init__(self, base_url: str) -> None:
+        self.base_url = base_url
+        self.http = httpx.Client(base_url=base_url, timeout=30.0)
+
+    def submit(self, body: dict[str, Any], key: str | None = None) -> dict[str, Any]:
+        """POST a job; asserts 202 and the Location header."""
+        headers = {"Idempotency-Key": key} if key else {}
+        response = self.http.post("/v1/jobs", json=body, headers=headers)
+        assert response.status_code == 202, response.text
+        job: dict[str, Any] = response.json()
+        assert response.headers["location"] == f"/v1/jobs/{job['id']}"
+        return job
+
+    def job(self, job_id: str) -> dict[str, Any]:
+        """GET the job; asserts 200."""
+        response = self.http.get(f"/v1/jobs/{job_id}")
+        assert response.status_code == 200, response.text
+        job: dict[str, Any] = response.json()
+        return job
+
+    def wait_for(
+        self,
+        job_id: str,
+        predicate: Callable[[dict[str, Any]], bool],
+        timeout: float = 120.0,
+        what: str = "condition",
+    ) -> dict[str, Any]:
+        """Poll the job until ``predicate`` holds."""
+        deadline = time.monotonic() + timeout
+        job = self.job(job_id)
+        while not predicate(job):
+            if time.monotonic() > deadline:
+                pytest.fail(f"job {job_id}: {what} not reached in {timeout} s; last: {job}")
+            time.sleep(0.05)
+            job = self.job(job_id)
+        return job
+
+    def wait_finished(self, job_id: str, timeout: float = 180.0) -> dict[str, Any]:
+        """Poll until the job is in a terminal state."""
+        return self.wait_for(job_id, lambda j: j["status"] in TERMINAL, timeout, "finish")
+
+    def events(self, job_id: str, timeout: float = 180.0) -> Iterator[dict[str, Any]]:
+        """The job's server-sent events as ``{"event", "id", "data"}`` with data decoded."""
+        with self.http.stream("GET", f"/v1/jobs/{job_id}/events", timeout=timeout) as response:
+            assert response.status_code == 200
+            assert response.headers["content-type"].startswith("text/event-stream")
+            fields: dict[str, str] = {}
+            for line in response.iter_lines():
+                if line == "":
+                    if "event" in fields:
+                        yield {
+                            "event": fields["event"],
+                            "id": fields.get("id"),
+                            "data": json.loads(fields.get("data", "null")),
+                        }
+                    fields = {}
+                elif not line.startswith(":"):
+                    name, _, value = line.partition(":")
+                    fields[name] = value.removeprefix(" ")
+
+    def close(self) -> None:
+        """Close the connection pool."""
+        self.http.close()
