@@ -7,8 +7,10 @@ pub/sub notices from the workers when a broker is configured, a short poll other
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
+import threading
 from collections.abc import AsyncIterator, Callable
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from dataclasses import dataclass
@@ -41,19 +43,46 @@ class Waker(Protocol):
 
 
 class PollingWaker:
-    """No notices: look again after a fixed short interval."""
+    """Look again after a short interval, or at once when :meth:`notify` names the job.
+
+    Used without Redis: the local pool's completion callback calls ``notify`` (from any thread),
+    so the ``end`` event does not wait for the next poll.
+    """
 
     def __init__(self, interval_s: float) -> None:
         self._interval = interval_s
+        self._lock = threading.Lock()
+        self._waiters: dict[str, set[tuple[asyncio.AbstractEventLoop, asyncio.Event]]] = {}
+
+    def notify(self, job_id: str) -> None:
+        """Wake the streams of ``job_id`` (thread-safe)."""
+        with self._lock:
+            waiters = list(self._waiters.get(job_id, ()))
+        for loop, event in waiters:
+            loop.call_soon_threadsafe(event.set)
 
     @asynccontextmanager
     async def subscribe(self, job_id: str) -> AsyncIterator[WaitFn]:
-        """A wait that just sleeps the poll interval."""
+        """A wait that sleeps the poll interval unless the job is notified first."""
+        entry = (asyncio.get_running_loop(), asyncio.Event())
+        with self._lock:
+            self._waiters.setdefault(job_id, set()).add(entry)
 
         async def wait(timeout: float) -> None:
-            await asyncio.sleep(min(timeout, self._interval))
+            event = entry[1]
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(event.wait(), min(timeout, self._interval))
+            event.clear()
 
-        yield wait
+        try:
+            yield wait
+        finally:
+            with self._lock:
+                waiters = self._waiters.get(job_id)
+                if waiters is not None:
+                    waiters.discard(entry)
+                    if not waiters:
+                        del self._waiters[job_id]
 
     async def close(self) -> None:
         """Nothing to release."""
@@ -115,25 +144,23 @@ class RedisWaker:
 @dataclass(frozen=True)
 class _Snapshot:
     status: str
-    attempts: int
     updated_at: datetime
-    history: list[dict[str, Any]] | None
+    job: Job | None
+    """The whole row when it changed since the previous read, else ``None``."""
 
 
 def _read(database: Database, job_id: str, owner: str, since: datetime | None) -> _Snapshot | None:
-    with database.session() as session:
+    with database.reader() as session:
         head = session.execute(
-            select(Job.status, Job.attempts, Job.updated_at).where(
-                Job.id == job_id, Job.owner == owner
-            )
+            select(Job.status, Job.updated_at).where(Job.id == job_id, Job.owner == owner)
         ).one_or_none()
         if head is None:
             return None
-        status, attempts, updated_at = head
-        if since is not None and updated_at == since:
-            return _Snapshot(status, attempts, updated_at, None)
-        history = session.execute(select(Job.history).where(Job.id == job_id)).scalar_one()
-        return _Snapshot(status, attempts, updated_at, list(history or []))
+        status, updated_at = head
+        if since is not None and updated_at == since and status not in TERMINAL_STATUSES:
+            return _Snapshot(status, updated_at, None)
+        job = session.execute(select(Job).where(Job.id == job_id)).scalar_one()
+        return _Snapshot(job.status, job.updated_at, job)
 
 
 def parse_last_event_id(value: str | None) -> int:
@@ -152,14 +179,13 @@ async def job_events(
     waker: Waker,
     job_id: str,
     owner: str,
-    end_payload: Callable[[], Any],
+    end_payload: Callable[[Job], Any],
     after: int = 0,
     idle_wait_s: float = 1.0,
 ) -> AsyncIterator[ServerSentEvent]:
     """Stream the job's iterations from number ``after + 1`` on, then a final ``end`` event.
 
-    ``end_payload`` is called (in a worker thread) once the job is finished; its JSON is the
-    data of the ``end`` event.
+    ``end_payload`` turns the finished job's row into the data of the ``end`` event.
     """
     sent = after
     attempts: int | None = None
@@ -169,19 +195,21 @@ async def job_events(
             snap = await anyio.to_thread.run_sync(_read, database, job_id, owner, since)
             if snap is None:
                 return
-            if snap.history is not None:
+            job = snap.job
+            if job is not None:
                 since = snap.updated_at
-                if attempts is not None and snap.attempts != attempts:
+                if attempts is not None and job.attempts != attempts:
                     sent = 0  # a new attempt starts its history again
-                attempts = snap.attempts
-                for index in range(sent, len(snap.history)):
-                    data = {"job_id": job_id, "attempt": snap.attempts, **snap.history[index]}
+                attempts = job.attempts
+                history = list(job.history or [])
+                for index in range(sent, len(history)):
+                    data = {"job_id": job_id, "attempt": job.attempts, **history[index]}
                     yield ServerSentEvent(
                         data=json.dumps(data), event="iteration", id=str(index + 1)
                     )
-                sent = max(sent, len(snap.history))
-            if snap.status in TERMINAL_STATUSES:
-                payload = await anyio.to_thread.run_sync(end_payload)
-                yield ServerSentEvent(data=json.dumps(payload), event="end", id=str(sent + 1))
-                return
+                sent = max(sent, len(history))
+                if job.status in TERMINAL_STATUSES:
+                    payload = json.dumps(end_payload(job))
+                    yield ServerSentEvent(data=payload, event="end", id=str(sent + 1))
+                    return
             await wait(idle_wait_s)

@@ -6,6 +6,7 @@ import logging
 from datetime import datetime
 from typing import Any
 
+from pydantic import ValidationError
 from sqlalchemy.exc import IntegrityError
 
 from app.dispatch import Dispatcher
@@ -51,13 +52,23 @@ def job_view(job: Job, settings: Settings, now: datetime | None = None) -> JobVi
         started_at=job.started_at,
         finished_at=job.finished_at,
         elapsed_s=elapsed,
-        progress=Progress.model_validate(job.progress) if job.progress else None,
+        progress=_progress(job),
         error=error,
         solve_s=job.solve_s,
         links=JobLinks(
             self=base, result=f"{base}/result", history=f"{base}/history", events=f"{base}/events"
         ),
     )
+
+
+def _progress(job: Job) -> Progress | None:
+    if not job.progress:
+        return None
+    try:
+        return Progress.model_validate(job.progress)
+    except ValidationError:  # an unexpected record shape must not hide the job
+        log.warning("job %s: unreadable progress %r", job.id, job.progress)
+        return None
 
 
 def _check_key(key: str | None) -> str | None:
@@ -97,7 +108,7 @@ def submit_job(
     key = _check_key(idempotency_key)
     fingerprint = request_fingerprint(body) if key else None
     if key and fingerprint:
-        with database.session() as session:
+        with database.reader() as session:
             existing = repository.find_by_idempotency_key(session, owner, key)
             if existing is not None:
                 return job_view(_replay(existing, fingerprint, key), settings), True
@@ -143,7 +154,7 @@ def submit_job(
 
 
 def _load(database: Database, owner: str, job_id: str) -> Job:
-    with database.session() as session:
+    with database.reader() as session:
         job = repository.get_job(session, job_id, owner)
     if job is None:
         raise not_found("job", job_id)
@@ -164,7 +175,7 @@ def list_jobs(
     offset: int,
 ) -> JobPage:
     """A page of the owner's jobs, newest first."""
-    with database.session() as session:
+    with database.reader() as session:
         jobs, total = repository.list_jobs(session, owner, statuses, limit, offset)
     now = utcnow()
     next_offset = offset + len(jobs) if offset + len(jobs) < total else None
@@ -177,19 +188,24 @@ def list_jobs(
     )
 
 
-def get_result(database: Database, owner: str, job_id: str) -> dict[str, Any]:
-    """The stored result document; 409 while the job is not finished or has none."""
-    job = _load(database, owner, job_id)
-    if job.status in ACTIVE_STATUSES:
+def get_result(database: Database, owner: str, job_id: str) -> str:
+    """The stored result document as JSON text; 409 while not finished or if there is none."""
+    with database.reader() as session:
+        found = repository.get_result_text(session, job_id, owner)
+    if found is None:
+        raise not_found("job", job_id)
+    if found.status in ACTIVE_STATUSES:
         raise ApiError(
-            409, "job_not_finished", f"job {job_id} is {job.status}; its result is not ready"
+            409, "job_not_finished", f"job {job_id} is {found.status}; its result is not ready"
         )
-    if job.result is None:
-        reason = f": {job.error_code}: {job.error_message}" if job.error_code else ""
+    if found.result_json is None:
+        reason = f": {found.error_code}: {found.error_message}" if found.error_code else ""
         raise ApiError(
-            409, "result_unavailable", f"job {job_id} ended {job.status} without a result{reason}"
+            409,
+            "result_unavailable",
+            f"job {job_id} ended {found.status} without a result{reason}",
         )
-    return job.result
+    return found.result_json
 
 
 def get_history(database: Database, owner: str, job_id: str) -> HistoryView:

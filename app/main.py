@@ -10,6 +10,7 @@ from importlib import metadata
 from fastapi import FastAPI
 
 from app.dispatch import Dispatcher, make_dispatcher
+from app.dispatch.local import LocalDispatcher
 from app.errors import install_error_handlers
 from app.events import PollingWaker, RedisWaker, Waker
 from app.metrics import build_registry
@@ -50,6 +51,8 @@ def build_service(settings: Settings, dispatcher: Dispatcher | None = None) -> S
         waker = RedisWaker(settings.broker_url, settings.event_poll_interval_s * 10)
     else:
         waker = PollingWaker(settings.event_poll_interval_s)
+        if isinstance(dispatcher, LocalDispatcher):
+            dispatcher.on_done = waker.notify
     return ServiceState(
         settings=settings,
         database=database,

@@ -52,7 +52,7 @@ class ServiceCollector(Collector):
         """Query the database and the queue and yield the metric families."""
         up = GaugeMetricFamily("trajopt_database_up", "1 if the job database answered the scrape")
         try:
-            with self._database.session() as session:
+            with self._database.reader() as session:
                 counts = repository.count_by_status(session)
                 histogram = repository.solve_time_histogram(session, SOLVE_TIME_BUCKETS_S)
         except Exception:

@@ -46,11 +46,26 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
         _add_model(components, model)
     for operations in schema.get("paths", {}).values():
         for operation in operations.values():
-            if not isinstance(operation, dict) or not operation.pop(PROBLEM_BODY_MARK, False):
+            if not isinstance(operation, dict):
                 continue
-            content = operation["requestBody"]["content"]["application/json"]
-            content["schema"] = PROBLEM_BODY_SCHEMA
+            _use_error_shape_for_422(operation)
+            if operation.pop(PROBLEM_BODY_MARK, False):
+                content = operation["requestBody"]["content"]["application/json"]
+                content["schema"] = PROBLEM_BODY_SCHEMA
+    for name in ("HTTPValidationError", "ValidationError"):
+        components.pop(name, None)
     return schema
+
+
+def _use_error_shape_for_422(operation: dict[str, Any]) -> None:
+    """FastAPI documents its own 422 body; this service answers with ``ErrorResponse``."""
+    response = operation.get("responses", {}).get("422")
+    if response is None:
+        return
+    schema = response.get("content", {}).get("application/json", {}).get("schema", {})
+    if schema.get("$ref", "").endswith("/HTTPValidationError"):
+        schema["$ref"] = "#/components/schemas/ErrorResponse"
+        response["description"] = "Invalid request: every invalid field, listed."
 
 
 def install_openapi(app: FastAPI) -> None:

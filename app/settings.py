@@ -49,10 +49,14 @@ class Settings(BaseSettings):
     max_attempts: int = Field(default=3, ge=1, le=20)
     default_time_limit_s: float = Field(default=300.0, gt=0)
     max_time_limit_s: float = Field(default=900.0, gt=0)
-    soft_limit_margin_s: float = Field(default=5.0, ge=0)
+    soft_limit_margin_s: float = Field(default=60.0, ge=0)
     hard_limit_grace_s: float = Field(default=30.0, gt=0)
     visibility_timeout_s: float = Field(default=3600.0, gt=0)
     worker_max_tasks_per_child: int = Field(default=200, ge=1)
+    worker_node_name: str = Field(
+        default="trajopt-{pid}@%h",
+        description="Celery node name; {pid} is the process id, %h the host name.",
+    )
 
     event_poll_interval_s: float = Field(default=0.05, gt=0, le=5)
     event_ping_interval_s: float = Field(default=15.0, gt=0)

@@ -78,7 +78,9 @@ class Progress(BaseModel):
 
     iteration: int | None = None
     cost: float | None = None
-    max_state_change: float | None = None
+    max_state_change: dict[str, float | None] | float | None = Field(
+        None, description="Largest change of each state in the iteration (SI units, degrees)."
+    )
     conic_status: str | None = None
     elapsed_s: float | None = Field(None, description="Seconds from the attempt's start.")
 
@@ -122,7 +124,7 @@ class JobView(BaseModel):
                     "progress": {
                         "iteration": 4,
                         "cost": 1.93e7,
-                        "max_state_change": 0.012,
+                        "max_state_change": {"altitude_m": 412.0, "heading_deg": 0.31},
                         "conic_status": "optimal",
                         "elapsed_s": 1.9,
                     },
@@ -183,7 +185,7 @@ class HistoryView(BaseModel):
                         {
                             "iteration": 1,
                             "cost": 2.1e7,
-                            "max_state_change": 0.31,
+                            "max_state_change": {"altitude_m": 2748.5, "heading_deg": 1.64},
                             "conic_status": "optimal",
                             "conic_solve_s": 0.021,
                             "iteration_wall_s": 0.034,

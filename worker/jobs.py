@@ -111,7 +111,7 @@ class _Attempt:
         if self.stop_requested:
             return True
         try:
-            with self.database.session() as session:
+            with self.database.reader() as session:
                 self.stop_requested = repository.should_stop(session, self.job_id, self.attempt)
         except self.passthrough:
             raise
@@ -217,10 +217,7 @@ def execute_job(
     database = get_database(settings.effective_database_url)
     with database.session() as session:
         claim = repository.claim_attempt(session, job_id, settings.max_attempts)
-        problem_raw = None
-        if claim.state is ClaimState.CLAIMED:
-            job = repository.get_job(session, job_id)
-            problem_raw = job.problem if job is not None else None
+    problem_raw = claim.problem
     if claim.state is not ClaimState.CLAIMED or problem_raw is None:
         log.info("job %s not run: %s", job_id, claim.state.value)
         if notify is not None and claim.state in (ClaimState.EXHAUSTED, ClaimState.CANCELLED):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import socket
 
 from app.settings import get_settings
 from app.storage.migrate import upgrade_database
@@ -11,13 +10,13 @@ from app.storage.session import dispose_all, get_database
 from worker.limits import check_visibility_timeout
 
 
-def worker_argv(concurrency: int | None, queue: str) -> list[str]:
-    """Command-line arguments of the Celery worker (unique node name per process)."""
+def worker_argv(concurrency: int | None, queue: str, node_name: str) -> list[str]:
+    """Command-line arguments of the Celery worker."""
     argv = [
         "worker",
         "--loglevel=INFO",
         f"--queues={queue}",
-        f"--hostname=trajopt-{os.getpid()}@{socket.gethostname()}",
+        f"--hostname={node_name.replace('{pid}', str(os.getpid()))}",
         "--without-gossip",
         "--without-mingle",
     ]
@@ -34,11 +33,14 @@ def run_worker(concurrency: int | None = None) -> None:
             "no broker configured: set REDIS_URL (or TRAJOPT_BROKER_URL) to run separate "
             "workers; without one, `trajopt serve` runs jobs in its own process pool"
         )
-    check_visibility_timeout(settings)
+    try:
+        check_visibility_timeout(settings)
+    except ValueError as exc:
+        raise SystemExit(f"refusing to start: {exc}") from None
     if settings.auto_migrate:
         upgrade_database(get_database(settings.effective_database_url).engine)
     dispose_all()  # the pool's children open their own connections
 
     from worker.tasks import app
 
-    app.worker_main(worker_argv(concurrency, settings.queue_name))
+    app.worker_main(worker_argv(concurrency, settings.queue_name, settings.worker_node_name))

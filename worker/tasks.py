@@ -5,6 +5,7 @@ from __future__ import annotations
 from functools import cache
 
 from celery.exceptions import SoftTimeLimitExceeded
+from sqlalchemy.exc import InterfaceError, OperationalError
 
 from app.settings import get_settings
 from worker.celery_app import TASK_NAME, app
@@ -18,9 +19,22 @@ def _notifier(url: str) -> RedisNotifier:
     return RedisNotifier(url)
 
 
-@app.task(name=TASK_NAME, acks_late=True, reject_on_worker_lost=True, ignore_result=True)
+@app.task(
+    name=TASK_NAME,
+    acks_late=True,
+    reject_on_worker_lost=True,
+    ignore_result=True,
+    autoretry_for=(OperationalError, InterfaceError),
+    retry_backoff=2,
+    retry_backoff_max=60,
+    max_retries=5,
+)
 def solve_job(job_id: str) -> str:
-    """Run the stored job ``job_id``; duplicate deliveries of a finished job do nothing."""
+    """Run the stored job ``job_id``; duplicate deliveries of a finished job do nothing.
+
+    A database that cannot be reached is retried with backoff; a retry is a new delivery, so
+    the attempt counter still bounds how often the solve itself restarts.
+    """
     settings = get_settings()
     return execute_job(
         job_id,

@@ -12,6 +12,7 @@ import logging
 import multiprocessing
 import signal
 import threading
+from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
@@ -51,6 +52,8 @@ class LocalDispatcher:
 
     def __init__(self, settings: Settings) -> None:
         self._settings = settings
+        self.on_done: Callable[[str], None] | None = None
+        """Called with the job id when a job's process returns (from a pool thread)."""
         self._lock = threading.Lock()
         self._executor: ProcessPoolExecutor | None = None
         self._pending: dict[str, Future[str]] = {}
@@ -96,6 +99,8 @@ class LocalDispatcher:
                 del self._pending[job_id]
         if future.cancelled():
             return
+        if self.on_done is not None:
+            self.on_done(job_id)
         exc = future.exception()
         if isinstance(exc, BrokenProcessPool):
             threading.Thread(target=self._rebuild, name="trajopt-pool-rebuild", daemon=True).start()

@@ -10,6 +10,7 @@ from sse_starlette.sse import EventSourceResponse
 from app import jobs_service
 from app.deps import OwnerDep, ServiceDep
 from app.events import job_events, parse_last_event_id
+from app.storage.models import Job
 from app.views import ErrorResponse
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
@@ -31,7 +32,7 @@ the finished job. A client reconnecting with `Last-Event-ID: n` gets iterations 
             "content": {
                 "text/event-stream": {
                     "example": 'event: iteration\nid: 1\ndata: {"job_id": "...", "attempt": 1, '
-                    '"iteration": 1, "cost": 2.1e7, "max_state_change": 0.31}\n\n'
+                    '"iteration": 1, "cost": 2.1e7, "conic_status": "optimal"}\n\n'
                     'event: end\nid: 2\ndata: {"id": "...", "status": "succeeded"}\n\n'
                 }
             }
@@ -49,8 +50,8 @@ def stream_events(
     database, settings = service.database, service.settings
     jobs_service.get_job(database, settings, owner, job_id)  # 404 before the stream starts
 
-    def end_payload() -> Any:
-        return jobs_service.get_job(database, settings, owner, job_id).model_dump(mode="json")
+    def end_payload(job: Job) -> Any:
+        return jobs_service.job_view(job, settings).model_dump(mode="json")
 
     events = job_events(
         database=database,

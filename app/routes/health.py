@@ -30,7 +30,7 @@ def readyz(service: ServiceDep) -> Health | JSONResponse:
     """200 when the database answers and the broker (or local pool) accepts work, else 503."""
     checks: dict[str, str] = {}
     try:
-        with service.database.session() as session:
+        with service.database.reader() as session:
             session.execute(text("SELECT 1"))
         checks["database"] = "ok"
     except Exception as exc:

@@ -82,12 +82,20 @@ def get_job(job_id: str, database: DatabaseDep, settings: SettingsDep, owner: Ow
 
 @router.get(
     "/{job_id}/result",
-    responses={**_NOT_FOUND, 409: {"model": ErrorResponse, "description": "Not finished."}},
+    response_class=Response,
+    responses={
+        200: {
+            "description": "The result document of the solver.",
+            "content": {"application/json": {"schema": {"type": "object"}}},
+        },
+        **_NOT_FOUND,
+        409: {"model": ErrorResponse, "description": "Not finished."},
+    },
     summary="Fetch the result document",
 )
-def get_result(job_id: str, database: DatabaseDep, owner: OwnerDep) -> dict[str, Any]:
+def get_result(job_id: str, database: DatabaseDep, owner: OwnerDep) -> Response:
     """The full result document of a finished job (409 while queued or running)."""
-    return jobs_service.get_result(database, owner, job_id)
+    return Response(jobs_service.get_result(database, owner, job_id), media_type="application/json")
 
 
 @router.get(

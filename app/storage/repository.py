@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from sqlalchemy import case, func, select, update
+from sqlalchemy import Text, case, cast, func, select, update
 from sqlalchemy.orm import Session
 
 from app.storage.models import ACTIVE_STATUSES, Job, JobStatus, utcnow
@@ -62,6 +62,29 @@ def get_job(session: Session, job_id: str, owner: str | None = None) -> Job | No
     if owner is not None:
         stmt = stmt.where(Job.owner == owner)
     return session.execute(stmt).scalar_one_or_none()
+
+
+@dataclass(frozen=True)
+class ResultText:
+    """A job's status and error with its result document as stored JSON text (not parsed)."""
+
+    status: str
+    error_code: str | None
+    error_message: str | None
+    result_json: str | None
+
+
+def get_result_text(session: Session, job_id: str, owner: str) -> ResultText | None:
+    """The owner's job result as JSON text, read without decoding it."""
+    row = session.execute(
+        select(Job.status, Job.error_code, Job.error_message, cast(Job.result, Text)).where(
+            Job.id == job_id, Job.owner == owner
+        )
+    ).one_or_none()
+    if row is None:
+        return None
+    status, code, message, text = row
+    return ResultText(status, code, message, text if text not in (None, "null") else None)
 
 
 def find_by_idempotency_key(session: Session, owner: str, key: str) -> Job | None:
@@ -129,6 +152,7 @@ class Claim:
 
     state: ClaimState
     attempt: int = 0
+    problem: dict[str, Any] | None = field(default=None, compare=False)
 
 
 def claim_attempt(session: Session, job_id: str, max_attempts: int) -> Claim:
@@ -155,12 +179,12 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int) -> Claim:
             progress=None,
             history=[],
         )
-        .returning(Job.attempts)
+        .returning(Job.attempts, Job.problem)
         .execution_options(**_NO_SYNC)
     )
-    attempt = session.execute(stmt).scalar_one_or_none()
-    if attempt is not None:
-        return Claim(ClaimState.CLAIMED, int(attempt))
+    claimed = session.execute(stmt).one_or_none()
+    if claimed is not None:
+        return Claim(ClaimState.CLAIMED, int(claimed[0]), claimed[1])
     job = session.execute(
         select(Job.status, Job.attempts, Job.cancel_requested).where(Job.id == job_id)
     ).one_or_none()

@@ -26,6 +26,17 @@ class Database:
 
     engine: Engine
     sessions: sessionmaker[Session]
+    readers: sessionmaker[Session]
+
+    @classmethod
+    def for_engine(cls, engine: Engine) -> Database:
+        """Session factories over ``engine``: transactional, and autocommit for reads."""
+        autocommit = engine.execution_options(isolation_level="AUTOCOMMIT")
+        return cls(
+            engine,
+            sessionmaker(engine, expire_on_commit=False),
+            sessionmaker(autocommit, expire_on_commit=False),
+        )
 
     @contextmanager
     def session(self) -> Iterator[Session]:
@@ -37,6 +48,12 @@ class Database:
             except BaseException:
                 session.rollback()
                 raise
+
+    @contextmanager
+    def reader(self) -> Iterator[Session]:
+        """A session for reads only, in autocommit mode (no BEGIN/COMMIT round trips)."""
+        with self.readers() as session:
+            yield session
 
 
 def _configure_sqlite(engine: Engine) -> None:
@@ -73,8 +90,7 @@ def get_database(url: str) -> Database:
     with _lock:
         database = _databases.get(url)
         if database is None:
-            engine = create_db_engine(url)
-            database = Database(engine, sessionmaker(engine, expire_on_commit=False))
+            database = Database.for_engine(create_db_engine(url))
             _databases[url] = database
         return database
 

@@ -16,7 +16,13 @@ import psycopg
 import pytest
 import redis
 
-from tests.integration.harness import ApiServer, ServiceClient, ServiceProcess, require
+from tests.integration.harness import (
+    ApiServer,
+    ServiceClient,
+    ServiceProcess,
+    forget_queue,
+    require,
+)
 
 SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 
@@ -124,9 +130,7 @@ def worker(
         yield process
     finally:
         process.stop()
-        client = redis.Redis.from_url(stack_env["REDIS_URL"])
-        client.delete(stack_env["TRAJOPT_QUEUE_NAME"])
-        client.close()
+        forget_queue(stack_env["REDIS_URL"], stack_env["TRAJOPT_QUEUE_NAME"])
 
 
 @pytest.fixture(scope="session")

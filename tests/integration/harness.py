@@ -19,6 +19,7 @@ from typing import Any, TextIO
 
 import httpx
 import pytest
+import redis
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 TERMINAL = frozenset({"succeeded", "failed", "cancelled", "timed_out"})
@@ -59,6 +60,15 @@ def require(service: str, reason: str | None) -> None:
     if os.environ.get("CI", "").lower() == "true":
         pytest.fail(message, pytrace=False)
     pytest.skip(message)
+
+
+def forget_queue(redis_url: str, queue: str) -> None:
+    """Delete a Celery queue's Redis list and the binding keys kombu made for it."""
+    client = redis.Redis.from_url(redis_url)
+    try:
+        client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+    finally:
+        client.close()
 
 
 class ServiceProcess:

@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from sqlalchemy.orm import sessionmaker
 
 from app.settings import normalize_database_url
 from app.storage.migrate import upgrade_database
@@ -18,5 +17,5 @@ from tests.unit.test_service_repository import *  # noqa: F403  (the same tests,
 def database(pg_schemas: PgSchemas) -> Iterator[Database]:
     engine = create_db_engine(normalize_database_url(pg_schemas.new("repo")))
     upgrade_database(engine)
-    yield Database(engine, sessionmaker(engine, expire_on_commit=False))
+    yield Database.for_engine(engine)
     engine.dispose()

@@ -314,6 +314,9 @@ def test_openapi_documents_bodies_with_examples(client: TestClient) -> None:
             assert content.get("examples"), f"{verb.upper()} {path} has no body examples"
             assert "oneOf" in content["schema"]
     assert bodies == 2
+    assert "HTTPValidationError" not in spec["components"]["schemas"]
+    listing_422 = spec["paths"]["/v1/jobs"]["get"]["responses"]["422"]
+    assert listing_422["content"]["application/json"]["schema"]["$ref"].endswith("/ErrorResponse")
     responses = spec["paths"]["/v1/jobs/{job_id}"]["get"]["responses"]
     assert responses["404"]["content"]["application/json"]["schema"]["$ref"].endswith(
         "/ErrorResponse"

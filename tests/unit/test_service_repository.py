@@ -13,7 +13,6 @@ import pytest
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import sessionmaker
 
 from app.storage import repository
 from app.storage.migrate import upgrade_database
@@ -28,7 +27,7 @@ PROBLEM = {"method": {"name": "energy-scp", "time_limit_s": 10}}
 def database(tmp_path: Path) -> Iterator[Database]:
     engine = create_db_engine(f"sqlite:///{tmp_path / 'jobs.sqlite3'}")
     upgrade_database(engine)
-    yield Database(engine, sessionmaker(engine, expire_on_commit=False))
+    yield Database.for_engine(engine)
     engine.dispose()
 
 

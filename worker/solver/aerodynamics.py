@@ -66,10 +66,21 @@ class AeroModel(Protocol):
 
 
 def _polyval(coefficients: Sequence[float], x: Array) -> tuple[Array, Array]:
-    """p(x) = sum_k c_k x^k (lowest order first) and p'(x), by Horner's rule; complex-safe."""
-    value = np.zeros_like(x)
-    slope = np.zeros_like(x)
-    for c in reversed(coefficients):
+    """p(x) = sum_k c_k x^k (lowest order first) and p'(x), by Horner's rule; complex-safe.
+
+    Horner's first two steps are written out (value c_n x + c_(n-1), slope c_n), which for
+    finite x gives the very same numbers as starting the recursion from zero.
+    """
+    if len(coefficients) < 2:
+        value = np.zeros_like(x)
+        slope = np.zeros_like(x)
+        for c in reversed(coefficients):
+            slope = slope * x + value
+            value = value * x + c
+        return value, slope
+    slope = np.full(np.shape(x), coefficients[-1], dtype=np.result_type(x, np.float64))
+    value = coefficients[-1] * x + coefficients[-2]
+    for c in reversed(coefficients[:-2]):
         slope = slope * x + value
         value = value * x + c
     return value, slope
@@ -101,7 +112,10 @@ class PolynomialAero:
 
     def coefficients(self, alpha_deg: npt.ArrayLike, mach: npt.ArrayLike) -> AeroCoefficients:
         """CL, CD and partials; the Mach partials are zero (the polynomials ignore Mach)."""
-        alpha, _ = np.broadcast_arrays(_as_float_array(alpha_deg), np.asarray(mach))
+        alpha = _as_float_array(alpha_deg)
+        mach_arr = np.asarray(mach)
+        if alpha.shape != mach_arr.shape:
+            alpha, _ = np.broadcast_arrays(alpha, mach_arr)
         cl, dcl = _polyval(self.cl_coefficients, alpha)
         if self.cd_argument == "cl":
             cd, dcd_dcl = _polyval(self.cd_coefficients, cl)

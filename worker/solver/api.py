@@ -11,11 +11,10 @@ from collections.abc import Callable
 from typing import Any
 
 from app.schemas import ProblemDocument
-from worker.solver.methods import check_support
+from worker.solver.methods import METHODS, check_support
 from worker.solver.objectives import UNITS
 from worker.solver.problem import build_problem
 from worker.solver.result import provenance, sanitize, trajectory_columns, validated
-from worker.solver.scp.energy_scp import run_energy_scp, to_trajectory
 from worker.solver.scp.history import IterationRecord
 from worker.solver.verification import verify
 
@@ -85,7 +84,7 @@ def solve_problem(
             on_iteration(sanitize(record.as_dict()))
 
     scp_start = time.perf_counter()
-    outcome = run_energy_scp(model, problem.method, on_iteration=forward, should_stop=should_stop)
+    outcome = METHODS[method].run(model, problem.method, forward, should_stop)
     wall = time.perf_counter() - scp_start
     status = _STATUS[outcome.status]
     failure = (
@@ -101,17 +100,14 @@ def solve_problem(
         "provenance": provenance(model),
     }
     verification_s = 0.0
-    if outcome.history:
-        traj = to_trajectory(model, outcome)
+    if outcome.trajectory is not None:
+        traj = outcome.trajectory
         v_start = time.perf_counter()
         report = verify(model, traj)
         verification_s = time.perf_counter() - v_start
         document["trajectory"] = trajectory_columns(model, traj)
         document["verification"] = report
-        last = outcome.history[-1]
-        terms = {
-            k.split(":", 1)[1]: v for k, v in last.cost_terms.items() if k.startswith("objective:")
-        }
+        terms = outcome.objective_terms
         single = len(terms) == 1
         name = next(iter(terms)) if single else "weighted_sum"
         document["objective"] = {

@@ -67,6 +67,21 @@ class VehicleForces:
         a, da_dv = self.alpha_schedule.alpha_deg(v_nd * self.scales.speed_m_s)
         return a, da_dv * self.scales.speed_m_s
 
+    def lift_drag(self, r_nd: Array, v_nd: Array) -> tuple[Array, Array, Array, Array]:
+        """rho (kg/m^3), lift, drag (in g0) and alpha (deg) on the schedule: ``terms`` values only.
+
+        For callers that need no partials (the path-limit bisection); same arithmetic as ``terms``.
+        """
+        sc = self.scales
+        h = (r_nd - 1.0) * sc.radius_m
+        rho, _ = self.atmosphere.density(h)
+        a_snd, _ = self.atmosphere.speed_of_sound(h)
+        mach = v_nd * sc.speed_m_s / a_snd
+        alpha, _ = self.alpha(v_nd)
+        c = self.aero.coefficients(alpha, mach)
+        qk = self.ballistic_factor * rho * v_nd * v_nd
+        return rho, qk * c.cl, qk * c.cd, alpha
+
     def terms(self, r_nd: Array, v_nd: Array, alpha_deg: Array | None = None) -> ForceTerms:
         """L, D and partials at radius ``r_nd`` and speed ``v_nd`` (both nondimensional)."""
         sc = self.scales

@@ -11,8 +11,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.schemas import METHOD_OPTIONS, FieldIssue, ProblemDocument
+from worker.solver.method_result import IterationSink, MethodResult, StopCheck
+from worker.solver.problem import EntryProblem
 
 SupportCheck = Callable[[ProblemDocument], list[FieldIssue]]
+Runner = Callable[[EntryProblem, Any, IterationSink | None, StopCheck | None], MethodResult]
 
 
 @dataclass(frozen=True)
@@ -25,6 +28,7 @@ class MethodInfo:
     features: tuple[str, ...]
     objectives: tuple[str, ...]
     check: SupportCheck
+    run: Runner
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready description with the default options of the method."""
@@ -180,6 +184,31 @@ def _check_energy_scp(doc: ProblemDocument) -> list[FieldIssue]:
     return out
 
 
+def _run_energy_scp(
+    model: EntryProblem,
+    options: Any,
+    on_iteration: IterationSink | None,
+    should_stop: StopCheck | None,
+) -> MethodResult:
+    """Paper 000's energy-domain SCP, adapted to the common method result."""
+    from worker.solver.scp.energy_scp import run_energy_scp, to_trajectory
+
+    out = run_energy_scp(model, options, on_iteration=on_iteration, should_stop=should_stop)
+    terms: dict[str, float] = {}
+    if out.history:
+        last = out.history[-1].cost_terms
+        terms = {k.split(":", 1)[1]: v for k, v in last.items() if k.startswith("objective:")}
+    return MethodResult(
+        status=out.status,
+        trajectory=to_trajectory(model, out) if out.history else None,
+        history=out.history,
+        conic_solve_s=out.conic_solve_s,
+        objective_terms=terms,
+        failure_code=out.failure_code,
+        failure_message=out.failure_message,
+    )
+
+
 METHODS: dict[str, MethodInfo] = {
     "energy-scp": MethodInfo(
         name="energy-scp",
@@ -197,6 +226,7 @@ METHODS: dict[str, MethodInfo] = {
         ),
         objectives=ENERGY_SCP_OBJECTIVES,
         check=_check_energy_scp,
+        run=_run_energy_scp,
     ),
 }
 

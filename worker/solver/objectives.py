@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics import EnergyDerivatives
-from worker.solver.path_limits import path_values
+from worker.solver.dynamics import EnergyDerivatives, EnergyRates
+from worker.solver.path_limits import PathValues, path_values
 from worker.solver.problem import EntryProblem
 
 Array = np.ndarray
@@ -42,10 +42,38 @@ class RunningCost:
     gradient: Array
 
 
+def _heat_rate(problem: EntryProblem, x: Array, ed: EnergyDerivatives | EnergyRates) -> PathValues:
+    """Heat rate and its partials along the nodes, from the force terms already in ``ed``."""
+    if problem.heat_model is None:
+        raise ValueError("min_heat_load needs path_constraints.heat_rate (the heating model)")
+    return path_values(problem.forces, problem.heat_model, x[:, 0], ed.speed, ed.time.forces)
+
+
+def energy_running_density(
+    problem: EntryProblem, name: str, x: Array, ed: EnergyDerivatives | EnergyRates
+) -> Array:
+    """Heat-load or time density along energy nodes (no gradient): ``energy_running_cost``'s value.
+
+    ``ed`` must be ``energy_rates`` or ``energy_dynamics`` at ``x`` (its force terms are reused).
+    """
+    t_scale = problem.scales.time_s
+    inv = 1.0 / ed.edot
+    if name == "min_time":
+        density: Array = t_scale * inv
+        return density
+    if name != "min_heat_load":
+        raise ValueError(f"{name} is not a running cost")
+    density = t_scale * _heat_rate(problem, x, ed).heat_rate * inv
+    return density
+
+
 def energy_running_cost(
     problem: EntryProblem, name: str, x: Array, ed: EnergyDerivatives
 ) -> RunningCost:
-    """Heat-load or time density along energy nodes, with its gradient in x."""
+    """Heat-load or time density along energy nodes, with its gradient in x.
+
+    ``ed`` must be ``energy_dynamics`` at ``x``: its force terms are reused, not recomputed.
+    """
     t_scale = problem.scales.time_s
     inv = 1.0 / ed.edot
     if name == "min_time":
@@ -54,11 +82,9 @@ def energy_running_cost(
         return RunningCost(density, gradient)
     if name != "min_heat_load":
         raise ValueError(f"{name} is not a running cost")
-    if problem.heat_model is None:
-        raise ValueError("min_heat_load needs path_constraints.heat_rate (the heating model)")
+    pv = _heat_rate(problem, x, ed)
     r = x[:, 0]
     v = ed.speed
-    pv = path_values(problem.forces, problem.heat_model, r, v, problem.forces.terms(r, v))
     v_r = -1.0 / (r * r * v)
     qdot_x = np.zeros_like(x)
     qdot_x[:, 0] = pv.heat_rate_r + pv.heat_rate_v * v_r

@@ -87,16 +87,28 @@ def path_values(
 
 
 def limit_ratio(forces: VehicleForces, limits: PathLimits, r: Array, v: Array) -> Array:
-    """max over the active limits of value / limit (<= 1 means all limits hold)."""
-    ft = forces.terms(r, v)
-    pv = path_values(forces, limits.heat, r, v, ft)
+    """max over the active limits of value / limit (<= 1 means all limits hold).
+
+    Values only (no partials): the same arithmetic as ``path_values`` on ``forces.terms``.
+    """
+    rho, lift, drag, alpha = forces.lift_drag(r, v)
+    v_dim = v * forces.scales.speed_m_s
     ratio = np.zeros_like(r)
     if limits.heat_max_W_m2 is not None:
-        ratio = np.maximum(ratio, pv.heat_rate / limits.heat_max_W_m2)
+        heat = limits.heat
+        if heat is None:
+            heat_rate = np.zeros_like(r)
+        else:
+            qa, _ = heat.alpha_factor(alpha)
+            base = heat.k_q * rho**heat.density_exponent * v_dim**heat.velocity_exponent
+            heat_rate = base * qa
+        ratio = np.maximum(ratio, heat_rate / limits.heat_max_W_m2)
     if limits.dynamic_pressure_max_Pa is not None:
-        ratio = np.maximum(ratio, pv.dynamic_pressure / limits.dynamic_pressure_max_Pa)
+        qbar = 0.5 * rho * v_dim * v_dim
+        ratio = np.maximum(ratio, qbar / limits.dynamic_pressure_max_Pa)
     if limits.load_factor_max_g is not None:
-        ratio = np.maximum(ratio, pv.load_factor / limits.load_factor_max_g)
+        nload = np.sqrt(lift * lift + drag * drag)
+        ratio = np.maximum(ratio, nload / limits.load_factor_max_g)
     return ratio
 
 
@@ -123,21 +135,28 @@ def radius_lower_bound(
     if not limits.any:
         return lo, np.ones_like(e, dtype=bool)
 
-    def ratio(r: Array) -> Array:
+    def ratio(r: Array, e: Array) -> Array:
         v = np.sqrt(2.0 * (1.0 / r - e))
         return limit_ratio(forces, limits, r, v)
 
-    feasible = ratio(hi) <= 1.0
-    unconstrained = ratio(lo) <= 1.0
+    # the ratio at both ends is kept along the bisection (it is needed again at the end)
+    n = e.size
+    both = ratio(np.concatenate([hi, lo]), np.concatenate([e, e]))
+    ratio_hi, ratio_lo = both[:n], both[n:]
+    feasible = ratio_hi <= 1.0
+    unconstrained = ratio_lo <= 1.0
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
-        ok = ratio(mid) <= 1.0
+        ratio_mid = ratio(mid, e)
+        ok = ratio_mid <= 1.0
         hi = np.where(ok, mid, hi)
         lo = np.where(ok, lo, mid)
-    g_lo, g_hi = np.log(ratio(lo)), np.log(ratio(hi))
+        ratio_hi = np.where(ok, ratio_mid, ratio_hi)
+        ratio_lo = np.where(ok, ratio_lo, ratio_mid)
+    g_lo, g_hi = np.log(ratio_lo), np.log(ratio_hi)
     with np.errstate(divide="ignore", invalid="ignore"):
         root = lo + (hi - lo) * g_lo / (g_lo - g_hi)
     root = np.where(np.isfinite(root) & (root >= lo) & (root <= hi), root, hi)
-    root = np.where(ratio(root) <= 1.0 + 1e-12, root, hi)
+    root = np.where(ratio(root, e) <= 1.0 + 1e-12, root, hi)
     bound = np.where(unconstrained, r_floor, root)
     return bound, feasible

@@ -44,12 +44,28 @@ class _Structure:
     def matches(self, problem: ConeProblem) -> bool:
         """True when ``problem`` has the same dimensions, cones and sparsity patterns."""
         return (
-            self.n == problem.n
+            _is_csc(problem.A)
+            and (problem.P is None or _is_csc(problem.P))
+            and self.n == problem.n
             and self.m == problem.m
             and self.cones == problem.cones
             and same_pattern(self.P, problem.P)
             and same_pattern(self.A, problem.A)
         )
+
+
+def _is_csc(matrix: Any) -> bool:
+    """True for a scipy.sparse matrix in CSC format."""
+    return bool(sp.issparse(matrix) and matrix.format == "csc")
+
+
+def _values(array: Any) -> memoryview:
+    """A float64 vector as a flat buffer for ``update``, which reads it as a sequence.
+
+    clarabel's bindings take any sequence of floats; a memoryview hands over the same float64
+    values several times faster than a NumPy array (whose items are NumPy scalars) or a list.
+    """
+    return np.ascontiguousarray(array, dtype=np.float64).data
 
 
 def _pattern_copy(matrix: sp.csc_matrix | None) -> sp.csc_matrix | None:
@@ -110,23 +126,29 @@ class ClarabelBackend:
         return settings
 
     def _prepare(self, problem: ConeProblem, time_limit: float) -> None:
-        """Update the cached solver in place when the structure matches, else build a new one."""
-        q = np.ascontiguousarray(problem.q, dtype=np.float64)
-        b = np.ascontiguousarray(problem.b, dtype=np.float64)
+        """Update the cached solver in place when the structure matches, else build a new one.
+
+        A problem on the cached pattern was fully validated when that pattern was first seen,
+        so only its values are checked here.
+        """
         if self.reuse and self._structure is not None and self._structure.matches(problem):
+            problem.validate_values()
             data: dict[str, Any] = {
-                "q": q,
-                "b": b,
-                "A": np.ascontiguousarray(problem.A.data, dtype=np.float64),
+                "q": _values(problem.q),
+                "b": _values(problem.b),
+                "A": _values(problem.A.data),
             }
             if problem.P is not None:
-                data["P"] = np.ascontiguousarray(problem.P.data, dtype=np.float64)
+                data["P"] = _values(problem.P.data)
             if time_limit != self._time_limit:
                 data["settings"] = self._settings(time_limit)
             self._solver.update(**data)
             self._time_limit = time_limit
             self.updates += 1
             return
+        problem.validate()
+        q = np.ascontiguousarray(problem.q, dtype=np.float64)
+        b = np.ascontiguousarray(problem.b, dtype=np.float64)
         n = problem.n
         P = problem.P if problem.P is not None else sp.csc_matrix((n, n))
         self._solver = clarabel.DefaultSolver(
@@ -142,7 +164,6 @@ class ClarabelBackend:
     def solve(self, problem: ConeProblem, *, time_limit_s: float | None = None) -> ConicSolution:
         """Solve ``problem``; ``time_limit_s`` bounds Clarabel's solve time (None: no limit)."""
         start = perf_counter()
-        problem.validate()
         self._prepare(problem, math.inf if time_limit_s is None else float(time_limit_s))
         solve_start = perf_counter()
         result = self._solver.solve()

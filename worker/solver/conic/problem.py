@@ -69,6 +69,25 @@ class ConeProblem:
         """Number of constraint rows."""
         return int(np.shape(self.b)[0])
 
+    def validate_values(self) -> None:
+        """Raise ValueError if q or b is not 1-D or q, b, A or P holds a non-finite value.
+
+        The cheap part of ``validate``, for a problem whose structure (shapes, formats, cones,
+        sparsity patterns) is known to equal that of an already validated one.
+        """
+        q = np.asarray(self.q)
+        b = np.asarray(self.b)
+        if q.ndim != 1:
+            raise ValueError(f"q must be 1-D, got shape {q.shape}")
+        if b.ndim != 1:
+            raise ValueError(f"b must be 1-D, got shape {b.shape}")
+        arrays = [("q", q), ("b", b), ("A.data", self.A.data)]
+        if self.P is not None:
+            arrays.append(("P.data", self.P.data))
+        for name, values in arrays:
+            if not np.isfinite(values).all():
+                raise ValueError(f"{name} contains non-finite values")
+
     def validate(self) -> None:
         """Raise ValueError naming the first shape, format or finiteness problem found."""
         self.cones.validate()
@@ -178,6 +197,28 @@ class SparseAssembler:
         """Number of triplet values ``assemble`` expects."""
         return self._n_triplets
 
+    @property
+    def has_duplicates(self) -> bool:
+        """True when some (row, col) pair occurs in more than one triplet (values are summed)."""
+        return self._has_duplicates
+
+    @property
+    def positions(self) -> NDArray[np.int64]:
+        """Index into the CSC data vector of each triplet (read-only view)."""
+        view = self._slot.view()
+        view.flags.writeable = False
+        return view
+
+    def matrix(self, data: NDArray[np.float64]) -> sp.csc_matrix:
+        """The CSC matrix on this pattern with data vector ``data`` (used as is, not copied)."""
+        if data.shape != (self._nnz,):
+            raise ValueError(f"expected {self._nnz} data values, got shape {data.shape}")
+        matrix = sp.csc_matrix(
+            (data, self._indices.copy(), self._indptr.copy()), shape=self._shape, copy=False
+        )
+        matrix.has_canonical_format = True
+        return matrix
+
     def assemble_data(self, values: ArrayLike) -> NDArray[np.float64]:
         """CSC data vector for triplet ``values`` (duplicates summed), in pattern order."""
         v = np.asarray(values, dtype=np.float64).ravel()
@@ -192,9 +233,4 @@ class SparseAssembler:
 
     def assemble(self, values: ArrayLike) -> sp.csc_matrix:
         """Return the CSC matrix for triplet ``values``; its pattern never depends on the values."""
-        data = self.assemble_data(values)
-        matrix = sp.csc_matrix(
-            (data, self._indices.copy(), self._indptr.copy()), shape=self._shape, copy=False
-        )
-        matrix.has_canonical_format = True
-        return matrix
+        return self.matrix(self.assemble_data(values))

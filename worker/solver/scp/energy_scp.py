@@ -19,11 +19,19 @@ from typing import Any, Literal
 import numpy as np
 
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
-from worker.solver.dynamics import EnergyDerivatives, energy_dynamics, time_state_from_energy
+from worker.solver.dynamics import (
+    EnergyDerivatives,
+    EnergyRates,
+    energy_dynamics,
+    energy_rates,
+    time_state_from_energy,
+)
 from worker.solver.objectives import (
     RUNNING_COSTS,
     TERMINAL_COSTS,
+    RunningCost,
     energy_running_cost,
+    energy_running_density,
     trapezoid,
 )
 from worker.solver.path_limits import radius_lower_bound
@@ -115,18 +123,33 @@ def initial_guess(problem: EntryProblem, e: Array) -> tuple[Array, Array]:
 
 
 class _Objective:
-    """The problem's objective terms, normalized so that each is O(1) on the initial guess."""
+    """The problem's objective terms, normalized so that each is O(1) on the initial guess.
+
+    A running cost is evaluated once per linearization ``ed`` (the last one is kept).
+    """
 
     def __init__(self, problem: EntryProblem, e: Array, x: Array, ed: EnergyDerivatives) -> None:
         self.problem = problem
         self.e = e
         self.scale: dict[str, float] = {}
+        self._cached_ed: EnergyDerivatives | None = None
+        self._cached: dict[str, RunningCost] = {}
         for term in problem.objective:
             if term.name in RUNNING_COSTS:
-                value = trapezoid(energy_running_cost(problem, term.name, x, ed).density, e)
+                value = trapezoid(self._running(term.name, x, ed).density, e)
                 self.scale[term.name] = abs(value) if value != 0 else 1.0
             else:
                 self.scale[term.name] = 1.0
+
+    def _running(self, name: str, x: Array, ed: EnergyDerivatives) -> RunningCost:
+        """Running cost ``name`` on ``x`` (``ed`` is the dynamics at ``x``), cached per ``ed``."""
+        if ed is not self._cached_ed:
+            self._cached_ed = ed
+            self._cached = {}
+        cost = self._cached.get(name)
+        if cost is None:
+            cost = self._cached[name] = energy_running_cost(self.problem, name, x, ed)
+        return cost
 
     def gradients(self, x: Array, ed: EnergyDerivatives) -> tuple[Array, Array]:
         """Running-cost gradient per unit energy (K, 5) and terminal gradient (5,), normalized."""
@@ -135,44 +158,27 @@ class _Objective:
         for t in self.problem.objective:
             w = t.weight / self.scale[t.name]
             if t.name in RUNNING_COSTS:
-                run += w * energy_running_cost(self.problem, t.name, x, ed).gradient
+                run += w * self._running(t.name, x, ed).gradient
             else:
                 idx, sign = TERMINAL_COSTS[t.name]
                 term[idx] += w * sign
         return run, term
 
-    def values(self, x: Array, ed: EnergyDerivatives) -> dict[str, float]:
-        """Each term's value in SI units (J/m^2, s, deg) on trajectory x."""
+    def values(self, x: Array, rates: EnergyRates) -> dict[str, float]:
+        """Each term's value in SI units (J/m^2, s, deg) on trajectory x (``rates`` at x)."""
         out: dict[str, float] = {}
         for t in self.problem.objective:
             if t.name in RUNNING_COSTS:
-                out[t.name] = trapezoid(
-                    energy_running_cost(self.problem, t.name, x, ed).density, self.e
-                )
+                density = energy_running_density(self.problem, t.name, x, rates)
+                out[t.name] = trapezoid(density, self.e)
             else:
                 idx, _ = TERMINAL_COSTS[t.name]
                 out[t.name] = math.degrees(float(x[-1, idx]))
         return out
 
 
-def _splice(base: EnergyDerivatives, rows: Array, part: EnergyDerivatives) -> EnergyDerivatives:
-    """``base`` with the node rows ``rows`` replaced by ``part`` (same fields)."""
-    out = EnergyDerivatives(
-        f=base.f.copy(),
-        A=base.A.copy(),
-        B=base.B.copy(),
-        edot=base.edot.copy(),
-        edot_x=base.edot_x.copy(),
-        speed=base.speed.copy(),
-        time=base.time,
-    )
-    for name in ("f", "A", "B", "edot", "edot_x", "speed"):
-        getattr(out, name)[rows] = getattr(part, name)
-    return out
-
-
-def _state_change(dx: Array, problem: EntryProblem) -> dict[str, float]:
-    m = np.max(np.abs(dx), axis=0)
+def _state_change(m: Array, problem: EntryProblem) -> dict[str, float]:
+    """The largest change of each state (``m``, energy-form units) in the reported units."""
     return {
         "altitude_m": float(m[0] * problem.scales.radius_m),
         "longitude_deg": math.degrees(m[1]),
@@ -317,7 +323,8 @@ def run_energy_scp(
         z = sol.x
         sub = tr.unpack(z, data)
         # post-correction (paper 000 eq. 38 and the state update algorithm)
-        ed_new = energy_dynamics(sub.x, sub.u, e, forces, omega)
+        # values only: the Jacobians are needed at the next reference x_next, below
+        ed_new = energy_rates(sub.x, sub.u, e, forces, omega)
         f_lin = (
             ed.f
             + np.einsum("kij,kj->ki", ed.A, sub.x - x_ref)
@@ -336,16 +343,11 @@ def run_energy_scp(
         change = np.max(np.abs(dx), axis=0)
         x_sol, u_sol = sub.x, sub.u
         x_ref, u_ref = x_next, sub.u
-        ed = ed_new
-        rows = np.any(corrected, axis=1)
-        if rows.any():  # re-linearize only where post-correction moved the nodes
-            ed = _splice(
-                ed_new, rows, energy_dynamics(x_ref[rows], u_ref[rows], e[rows], forces, omega)
-            )
         values = objective.values(sub.x, ed_new)
         vc_norm = (
             float(np.sum(np.abs(sub.virtual_control))) if sub.virtual_control is not None else 0.0
         )
+        tr_slack = float(np.sum(sub.dx_scaled**2))
         record = IterationRecord(
             iteration=k,
             cost=float(sol.objective if sol.objective is not None else np.nan),
@@ -354,14 +356,14 @@ def run_energy_scp(
                 "soft_terminal": float(np.dot([t.weight for t in tr.soft], sub.soft_slacks))
                 if tr.soft
                 else 0.0,
-                "trust_region": float(options.weight_trust_region * np.sum(sub.dx_scaled**2)),
+                "trust_region": float(options.weight_trust_region * tr_slack),
                 "virtual_control": options.weight_virtual_control * vc_norm
                 if tr.virtual_control
                 else 0.0,
             },
             objective_value=next(iter(values.values())) if len(values) == 1 else None,
-            max_state_change=_state_change(dx, problem),
-            trust_region_slack=float(np.sum(sub.dx_scaled**2)),
+            max_state_change=_state_change(change, problem),
+            trust_region_slack=tr_slack,
             virtual_control_norm=vc_norm,
             linearization_error=float(np.max(lin_err)),
             nodes_post_corrected=int(np.count_nonzero(np.any(corrected, axis=1))),
@@ -380,7 +382,7 @@ def run_energy_scp(
         if k == REGRID_AFTER and options.grid != "uniform":
             # re-space the nodes evenly in the iterate's flight time (resolves the terminal
             # maneuver, which a grid even in energy crowds into its last intervals)
-            e_new = time_uniform_grid(e, 1.0 / ed.edot)
+            e_new = time_uniform_grid(e, 1.0 / energy_rates(x_ref, u_ref, e, forces, omega).edot)
             x_ref = np.column_stack([np.interp(e_new, e, x_ref[:, j]) for j in range(NX)])
             u_ref = np.column_stack([np.interp(e_new, e, u_ref[:, j]) for j in range(2)])
             e = e_new
@@ -389,9 +391,10 @@ def run_energy_scp(
             node_step = tr.quad_w
             if r_lower is not None:
                 r_lower, _ = radius_lower_bound(forces, problem.limits, e, 1.0, r_ceiling)
-            ed = energy_dynamics(x_ref, u_ref, e, forces, omega)
             regrid_done = k + 1
             record.extra["regrid"] = True
+        if k < options.max_iterations:  # linearize about the next reference
+            ed = energy_dynamics(x_ref, u_ref, e, forces, omega)
     return outcome(
         "max_iterations", "max_iterations", f"not converged in {options.max_iterations} iterations"
     )

@@ -11,10 +11,12 @@ The sparsity pattern is fixed at construction; ``build`` only computes values.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from worker.solver.conic import ConeProblem, ConeSpec, SparseAssembler
 
@@ -108,6 +110,7 @@ class EnergyTrapezoid:
             n += 2 * N * NX
         self.n = n
         self._build_structure()
+        self._constant_values()
 
     def set_grid(self, e: Array) -> None:
         """Move the nodes to energies ``e`` (same count): only values change, not the pattern."""
@@ -120,6 +123,7 @@ class EnergyTrapezoid:
         w[:-1] += 0.5 * self.h
         w[1:] += 0.5 * self.h
         self.quad_w = w  # trapezoid weights of the running cost
+        self._P: sp.csc_matrix | None = None  # depends on the grid: rebuilt on the next build
 
     # ------------------------------------------------------------------ structure
     def _build_structure(self) -> None:
@@ -202,45 +206,38 @@ class EnergyTrapezoid:
         )
 
     # ------------------------------------------------------------------ values
-    def build(self, d: SubproblemData) -> ConeProblem:
-        """Assemble the subproblem linearized about ``d.x_ref``, ``d.u_ref``."""
-        K, N, S, h = self.K, self.N, self.S, self.h
+    def _constant_values(self) -> None:
+        """Fill the triplet values, b and q entries that do not depend on the reference.
+
+        ``build`` then writes only the reference-dependent entries into copies of these.
+        """
+        K, N, S = self.K, self.N, self.S
         vals: list[Array] = []
-        half = 0.5 * h[:, None, None]
-        eye = np.eye(NX)[None, :, :] * S[None, :, None]
-        # dA_i[j,k] = -delta_jk S_j - h/2 A_i[j,k] S_k ;  dA_{i+1} = +delta S - h/2 A_{i+1} S
-        vals.append((-eye - half * d.A[:-1] * S[None, None, :]).ravel())
-        vals.append((eye - half * d.A[1:] * S[None, None, :]).ravel())
-        vals.append((-half * d.B[:-1]).ravel())
-        vals.append((-half * d.B[1:]).ravel())
+        n_dyn = 2 * N * NX * NX + 2 * N * NX * NU
+        vals.append(np.zeros(n_dyn))  # dynamics blocks, written by build
         if self.virtual_control:
             vals.append(-np.ones(N * NX))
-        c = d.f - np.einsum("kjm,km->kj", d.B, d.u_ref)
-        b_dyn = -(d.x_ref[1:] - d.x_ref[:-1]) + 0.5 * h[:, None] * (c[:-1] + c[1:])
-        b: list[Array] = [b_dyn.ravel()]
+        b: list[Array] = [np.zeros(N * NX)]  # dynamics residuals, written by build
         vals.append(np.ones(NX))
-        b.append((d.x0 - d.x_ref[0]) / S)
+        b.append(np.zeros(NX))  # initial state, written by build
         for t in self.terminal:
             if t.kind == "fixed":
                 vals.append(np.ones(1))
-                b.append(np.array([(t.value - d.x_ref[-1, t.state]) / S[t.state]]))
+                b.append(np.zeros(1))
         if self.path_limits:
-            assert d.radius_lower is not None
             vals.append(np.full(K, -S[0]))
-            b.append(d.x_ref[:, 0] - d.radius_lower)
+            b.append(np.zeros(K))
         vals.append(-np.ones(K))
         b.append(np.full(K, -self.bank_cos))
         for t in self.soft:
-            off = t.value - d.x_ref[-1, t.state]
             vals.append(np.array([S[t.state], -1.0]))
-            b.append(np.array([off]))
+            b.append(np.zeros(1))
             vals.append(np.array([-S[t.state], -1.0]))
-            b.append(np.array([-off]))
+            b.append(np.zeros(1))
         for t in self.terminal:
             if t.kind == "range":
-                xr = d.x_ref[-1, t.state]
                 vals.append(np.array([S[t.state], -S[t.state]]))
-                b.append(np.array([t.hi - xr, -(t.lo - xr)]))
+                b.append(np.zeros(2))
         if self.virtual_control:
             for sign in (1.0, -1.0):
                 vals.append(np.full(N * NX, sign))
@@ -250,11 +247,105 @@ class EnergyTrapezoid:
         soc_b = np.zeros((K, 3))
         soc_b[:, 0] = 1.0
         b.append(soc_b.ravel())
-        A = self.A_asm.assemble(np.concatenate(vals))
-
+        self._vals = np.concatenate(vals)
+        # Without duplicate triplets each triplet owns one CSC data slot: the constant entries
+        # are placed once and build writes the dynamics blocks straight into their slots.
+        self._direct = not self.A_asm.has_duplicates
+        if self._direct:
+            self._A_data = self.A_asm.assemble_data(self._vals)
+            pos = self.A_asm.positions
+            sizes = (N * NX * NX, N * NX * NX, N * NX * NU, N * NX * NU)
+            bounds = np.cumsum((0, *sizes))
+            self._block_slots = [pos[a:b] for a, b in itertools.pairwise(bounds)]
+        self._b = np.concatenate(b)
+        self._n_dyn = n_dyn
         q = np.zeros(self.n)
-        q[self.col_x] = (d.cost_gradient * self.quad_w[:, None]) * S[None, :]
-        q[self.col_x[-1]] += d.terminal_gradient * S
+        for s, t in enumerate(self.soft):
+            q[self.col_soft[s]] = t.weight
+        if self.virtual_control:
+            q[self.col_mu] = self.w_vc
+        self._q = q
+        self._eye_s = np.eye(NX)[None, :, :] * S[None, :, None]
+        self._neg_eye_s = -self._eye_s
+
+    def _objective_matrix(self) -> sp.csc_matrix:
+        """P on the current grid (trust region and control smoothness); cached until regrid."""
+        if self._P is None:
+            K, h = self.K, self.h
+            c = self.w_du * np.mean(h) / h  # per-interval weight: a penalty on the rate du/de
+            u_diag = np.zeros(K)
+            u_diag[:-1] += 2.0 * c
+            u_diag[1:] += 2.0 * c
+            self._P = self.P_asm.assemble(
+                np.concatenate(
+                    [
+                        np.full(K * NX, 2.0 * self.w_tr),
+                        np.repeat(u_diag, NU),
+                        np.repeat(-2.0 * c, NU),
+                    ]
+                )
+            )
+        return self._P
+
+    def build(self, d: SubproblemData) -> ConeProblem:
+        """Assemble the subproblem linearized about ``d.x_ref``, ``d.u_ref``.
+
+        The returned P is shared by every problem built on the same grid (treat it as read-only).
+        """
+        K, N, S, h = self.K, self.N, self.S, self.h
+        half = 0.5 * h[:, None, None]
+        S_row = S[None, None, :]
+        # dA_i[j,k] = -delta_jk S_j - h/2 A_i[j,k] S_k ;  dA_{i+1} = +delta S - h/2 A_{i+1} S
+        blocks = (
+            self._neg_eye_s - half * d.A[:-1] * S_row,
+            self._eye_s - half * d.A[1:] * S_row,
+            -half * d.B[:-1],
+            -half * d.B[1:],
+        )
+        if self._direct:
+            data = self._A_data.copy()
+            for slots, block in zip(self._block_slots, blocks, strict=True):
+                data[slots] = block.ravel()
+            A = self.A_asm.matrix(data)
+        else:
+            vals = self._vals.copy()
+            pos = 0
+            for block in blocks:
+                vals[pos : pos + block.size] = block.ravel()
+                pos += block.size
+            A = self.A_asm.assemble(vals)
+        b = self._b.copy()
+        c = d.f - np.einsum("kjm,km->kj", d.B, d.u_ref)
+        b_dyn = -(d.x_ref[1:] - d.x_ref[:-1]) + 0.5 * h[:, None] * (c[:-1] + c[1:])
+        row = N * NX
+        b[:row] = b_dyn.ravel()
+        b[row : row + NX] = (d.x0 - d.x_ref[0]) / S
+        row += NX
+        for t in self.terminal:
+            if t.kind == "fixed":
+                b[row] = (t.value - d.x_ref[-1, t.state]) / S[t.state]
+                row += 1
+        if self.path_limits:
+            assert d.radius_lower is not None
+            b[row : row + K] = d.x_ref[:, 0] - d.radius_lower
+            row += K
+        row += K  # bank rows: constant
+        for t in self.soft:
+            off = t.value - d.x_ref[-1, t.state]
+            b[row] = off
+            b[row + 1] = -off
+            row += 2
+        for t in self.terminal:
+            if t.kind == "range":
+                xr = d.x_ref[-1, t.state]
+                b[row] = t.hi - xr
+                b[row + 1] = -(t.lo - xr)
+                row += 2
+
+        q = self._q.copy()
+        q_x = q[: K * NX].reshape(K, NX)  # the state columns come first (view)
+        q_x[:] = (d.cost_gradient * self.quad_w[:, None]) * S[None, :]
+        q_x[-1] += d.terminal_gradient * S
         # regularization: reward the component of u along the reference bank direction, the
         # linearization of |u| at u_ref, which drives |u| to 1 (exact relaxation, eq. 22)
         norm = np.linalg.norm(d.u_ref, axis=1)
@@ -262,24 +353,7 @@ class EnergyTrapezoid:
             norm[:, None] > 1e-9, d.u_ref / np.maximum(norm, 1e-9)[:, None], np.array([1.0, 0.0])
         )
         q[self.col_u] = -self.w_reg * self.quad_w[:, None] * direction
-        for s, t in enumerate(self.soft):
-            q[self.col_soft[s]] = t.weight
-        if self.virtual_control:
-            q[self.col_mu] = self.w_vc
-        c = self.w_du * np.mean(h) / h  # per-interval weight: a penalty on the rate du/de
-        u_diag = np.zeros(K)
-        u_diag[:-1] += 2.0 * c
-        u_diag[1:] += 2.0 * c
-        P = self.P_asm.assemble(
-            np.concatenate(
-                [
-                    np.full(K * NX, 2.0 * self.w_tr),
-                    np.repeat(u_diag, NU),
-                    np.repeat(-2.0 * c, NU),
-                ]
-            )
-        )
-        return ConeProblem(P=P, q=q, A=A, b=np.concatenate(b), cones=self.cones)
+        return ConeProblem(P=self._objective_matrix(), q=q, A=A, b=b, cones=self.cones)
 
     def unpack(self, z: Array, d: SubproblemData) -> Unpacked:
         """States, controls and slacks of a subproblem solution ``z``."""

@@ -1,0 +1,123 @@
+"""``trajopt serve`` on its embedded defaults: SQLite in the data folder, jobs in a local pool.
+
+No Redis, no PostgreSQL, no separate worker: the commands a fresh machine runs first.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.integration.harness import ApiServer, ServiceClient, long_job
+
+pytestmark = pytest.mark.slow
+
+SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
+
+
+def _running(job: dict[str, Any]) -> bool:
+    return job["status"] == "running" and (job["progress"] or {}).get("iteration", 0) >= 1
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("embedded-data")
+
+
+@pytest.fixture(scope="module")
+def server(data_dir: Path) -> Iterator[ApiServer]:
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
+    }
+    env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
+    server = ApiServer(env, data_dir / "serve.log")
+    server.start_and_wait()
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def client(server: ApiServer) -> Iterator[ServiceClient]:
+    client = server.client()
+    yield client
+    client.close()
+
+
+@pytest.fixture(scope="module")
+def scenario() -> str:
+    from worker.solver.scenarios import list_scenarios
+
+    return list_scenarios()[0].name
+
+
+def test_serve_prints_the_docs_address_and_uses_sqlite(
+    server: ApiServer, client: ServiceClient, data_dir: Path
+) -> None:
+    assert f"http://127.0.0.1:{server.port}/docs" in server.log_text()
+    assert (data_dir / "trajopt.sqlite3").is_file()
+    ready = client.http.get("/readyz").json()
+    assert ready["checks"] == {"database": "ok", "local": "ok"}
+    assert client.http.get("/docs").status_code == 200
+
+
+def test_scenario_job_runs_without_a_broker(client: ServiceClient, scenario: str) -> None:
+    job = client.submit({"scenario": scenario})
+    assert job["status"] == "queued"
+    events = list(client.events(job["id"]))
+    assert [e["event"] for e in events][-1] == "end"
+    iterations = [e["data"]["iteration"] for e in events if e["event"] == "iteration"]
+    assert iterations == list(range(1, len(iterations) + 1))
+    assert events[-1]["data"]["status"] == "succeeded"
+    result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
+    assert result["status"] == "succeeded"
+    assert len(result["history"]) == len(iterations)
+
+
+def test_failure_and_cancellation(client: ServiceClient, scenario: str) -> None:
+    failing = client.submit({"scenario": scenario, "method": {"max_iterations": 2}})
+    done = client.wait_finished(failing["id"])
+    assert (done["status"], done["error"]["code"]) == ("failed", "max_iterations")
+
+    running = client.submit(long_job(scenario))
+    client.wait_for(running["id"], _running, 60, "first iteration")
+    queued = client.submit({"scenario": scenario})
+    response = client.http.delete(f"/v1/jobs/{queued['id']}")
+    assert (response.status_code, response.json()["status"]) == (200, "cancelled")
+    assert client.http.delete(f"/v1/jobs/{running['id']}").status_code == 202
+    done = client.wait_finished(running["id"], timeout=30)
+    assert done["status"] == "cancelled"
+    assert client.http.get(f"/v1/jobs/{running['id']}/history").json()["iterations"]
+
+
+def test_restart_keeps_jobs_and_resumes_unfinished_ones(
+    server: ApiServer, client: ServiceClient, scenario: str
+) -> None:
+    listing_before = client.http.get("/v1/jobs?limit=100").json()
+    interrupted = client.submit(long_job(scenario))
+    client.wait_for(interrupted["id"], _running, 60, "first iteration")
+    waiting = client.submit({"scenario": scenario, "method": {"max_iterations": 2}})
+    server.stop()
+    server.start_and_wait()
+
+    resumed = client.wait_for(
+        interrupted["id"], lambda j: j["attempts"] == 2 and _running(j), 60, "second attempt"
+    )
+    assert resumed["status"] == "running"
+    client.http.delete(f"/v1/jobs/{interrupted['id']}")
+    assert client.wait_finished(interrupted["id"], timeout=30)["status"] == "cancelled"
+    assert client.wait_finished(waiting["id"])["status"] == "failed"
+    listing_after = client.http.get("/v1/jobs?limit=100").json()
+    assert listing_after["total"] == listing_before["total"] + 2
+    old = {j["id"]: j for j in listing_after["items"]}
+    for job in listing_before["items"]:
+        assert {k: old[job["id"]][k] for k in ("status", "finished_at", "attempts")} == {
+            k: job[k] for k in ("status", "finished_at", "attempts")
+        }
