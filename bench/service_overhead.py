@@ -132,6 +132,8 @@ def _stack(args: argparse.Namespace, workers: int, logs: Path) -> Iterator[str]:
             queue = env["TRAJOPT_QUEUE_NAME"]
             client = redis.Redis.from_url(args.redis_url)
             client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+            if client.keys("*") == [b"_kombu.binding_deadlines"]:
+                client.delete("_kombu.binding_deadlines")
             client.close()
 
 

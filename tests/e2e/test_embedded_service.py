@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from tests.integration.harness import ApiServer, ServiceClient, long_job
+from tests.integration.harness import SCENARIO, ApiServer, ServiceClient, long_job
 
 pytestmark = pytest.mark.slow
 
@@ -53,9 +53,9 @@ def client(server: ApiServer) -> Iterator[ServiceClient]:
 
 @pytest.fixture(scope="module")
 def scenario() -> str:
-    from worker.solver.scenarios import list_scenarios
+    from worker.solver.scenarios import get_scenario
 
-    return list_scenarios()[0].name
+    return get_scenario(SCENARIO).name
 
 
 def test_serve_prints_the_docs_address_and_uses_sqlite(

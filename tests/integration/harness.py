@@ -22,6 +22,8 @@ import pytest
 import redis
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = "rlv-min-heat-load"
+"""The built-in scenario the service tests submit."""
 TERMINAL = frozenset({"succeeded", "failed", "cancelled", "timed_out"})
 NEVER_CONVERGE = {
     "altitude_m": 1e-9,
@@ -67,6 +69,8 @@ def forget_queue(redis_url: str, queue: str) -> None:
     client = redis.Redis.from_url(redis_url)
     try:
         client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+        if client.keys("*") == [b"_kombu.binding_deadlines"]:  # only kombu's bookkeeping left
+            client.delete("_kombu.binding_deadlines")
     finally:
         client.close()
 

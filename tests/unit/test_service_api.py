@@ -20,7 +20,8 @@ from app.settings import Settings
 from app.storage import repository
 from app.storage.session import Database, get_database
 from worker.limits import TimeLimits
-from worker.solver.scenarios import list_scenarios
+
+SCENARIO = "rlv-min-heat-load"
 
 
 class RecordingDispatcher:
@@ -69,7 +70,7 @@ def database(client: TestClient, settings: Settings) -> Database:
 
 
 def small_job() -> dict[str, Any]:
-    return {"scenario": list_scenarios()[0].name, "method": {"nodes": 20, "max_iterations": 3}}
+    return {"scenario": SCENARIO, "method": {"nodes": 20, "max_iterations": 3}}
 
 
 def submit(client: TestClient, body: dict[str, Any] | None = None, key: str | None = None) -> str:
@@ -141,7 +142,7 @@ def test_idempotency_key(client: TestClient, dispatcher: RecordingDispatcher) ->
 
 def test_invalid_problem_lists_every_bad_field(client: TestClient) -> None:
     body = {
-        "scenario": list_scenarios()[0].name,
+        "scenario": SCENARIO,
         "overrides": {"method": {"nodes": 1}, "vehicle": {"mass_kg": -5}, "bogus": 1},
     }
     error = assert_error(client.post("/v1/jobs", json=body), 422, "invalid_problem")
@@ -281,7 +282,8 @@ def test_health_readiness_and_metrics(client: TestClient) -> None:
 def test_scenarios_and_validation(client: TestClient) -> None:
     listed = client.get("/v1/scenarios").json()
     assert {"name", "title", "source"} <= set(listed[0])
-    one = client.get(f"/v1/scenarios/{listed[0]['name']}").json()
+    assert SCENARIO in {s["name"] for s in listed}
+    one = client.get(f"/v1/scenarios/{SCENARIO}").json()
     assert "problem" in one
     assert isinstance(one["corrections"], list)
     assert_error(client.get("/v1/scenarios/nope"), 404, "scenario_not_found")
