@@ -350,7 +350,14 @@ def run_energy_scp(
         tr_slack = float(np.sum(sub.dx_scaled**2))
         record = IterationRecord(
             iteration=k,
-            cost=float(sol.objective if sol.objective is not None else np.nan),
+            cost=(
+                next(iter(values.values()))
+                if len(values) == 1
+                else sum(
+                    t.weight * values[t.name] / objective.scale[t.name] for t in problem.objective
+                )
+            ),
+            subproblem_cost=float(sol.objective if sol.objective is not None else np.nan),
             cost_terms={
                 **{f"objective:{n}": v for n, v in values.items()},
                 "soft_terminal": float(np.dot([t.weight for t in tr.soft], sub.soft_slacks))

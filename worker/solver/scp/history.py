@@ -11,7 +11,7 @@ class IterationRecord:
     """One SCP iteration, as stored in the job's history and streamed to clients."""
 
     iteration: int
-    cost: float  # subproblem objective (normalized units)
+    cost: float  # the problem's objective on the iterate: SI for one term, else normalized sum
     cost_terms: dict[str, float]
     objective_value: float | None  # the problem's own objective on the new reference, SI units
     max_state_change: dict[str, float]  # per state, SI/degrees
@@ -25,6 +25,7 @@ class IterationRecord:
     conic_solve_s: float
     conic_setup_s: float
     iteration_wall_s: float
+    subproblem_cost: float | None = None  # the conic subproblem's objective (normalized units)
     extra: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
