@@ -107,11 +107,13 @@ class ClarabelBackend:
         self._solver: Any = None
         self._structure: _Structure | None = None
         self._time_limit = math.inf
+        self._last_P: Any = None
 
     def reset(self) -> None:
         """Drop the cached solver so the next solve starts from scratch."""
         self._solver = None
         self._structure = None
+        self._last_P = None
 
     def _settings(self, time_limit: float) -> Any:
         """Clarabel settings for one solve: quiet, our tolerances, the given time limit."""
@@ -138,11 +140,12 @@ class ClarabelBackend:
                 "b": _values(problem.b),
                 "A": _values(problem.A.data),
             }
-            if problem.P is not None:
-                data["P"] = _values(problem.P.data)
+            if problem.P is not None and problem.P is not self._last_P:
+                data["P"] = _values(problem.P.data)  # an unchanged P object is not sent again
             if time_limit != self._time_limit:
                 data["settings"] = self._settings(time_limit)
             self._solver.update(**data)
+            self._last_P = problem.P
             self._time_limit = time_limit
             self.updates += 1
             return
@@ -155,6 +158,7 @@ class ClarabelBackend:
             P, q, problem.A, b, clarabel_cones(problem.cones), self._settings(time_limit)
         )
         self._time_limit = time_limit
+        self._last_P = problem.P
         self.setups += 1
         self._structure = None
         if self.reuse and self._solver.is_data_update_allowed():

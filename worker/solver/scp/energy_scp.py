@@ -294,11 +294,15 @@ def run_energy_scp(
             radius_lower=r_lower,
             x0=x0,
         )
-        limit = (
+        # whole seconds (rounded down) above 2 s: the limit then rarely changes between
+        # iterations, so the conic backend need not rebuild its settings; the loop itself checks
+        # the deadline before every iteration
+        budget = (
             remaining
             if options.conic_time_limit_s is None
             else min(remaining, options.conic_time_limit_s)
         )
+        limit = math.floor(budget) if budget > 2.0 else budget
         sol = backend.solve(tr.build(data), time_limit_s=limit)
         conic_total += sol.solve_time_s
         if sol.status == ConicStatus.INFEASIBLE and vc_mode == "auto" and not tr.virtual_control:
