@@ -21,6 +21,7 @@ from scipy.integrate import solve_ivp
 from worker.solver.dynamics import time_dynamics
 from worker.solver.path_limits import path_values
 from worker.solver.problem import STATE_NAMES, EntryProblem
+from worker.solver.scalar_rates import time_rates
 
 Array = np.ndarray
 GridKind = Literal["energy", "time"]
@@ -81,9 +82,12 @@ def propagate(
 
     def rhs(t: float, y: Array) -> Array:
         s = _energy(y) if by_energy else t
-        sigma = np.interp(s, grid, bank)
+        sigma = float(np.interp(s, grid, bank))
+        if alpha_nodes is None:  # scheduled alpha: the scalar fast path
+            _, lift, drag, _ = forces.lift_drag(float(y[0]), float(y[3]))
+            return time_rates(y, math.cos(sigma), math.sin(sigma), float(lift), float(drag), omega)
         u[0, 0], u[0, 1] = math.cos(sigma), math.sin(sigma)
-        alpha = None if alpha_nodes is None else np.array([np.interp(s, grid, alpha_nodes)])
+        alpha = np.array([np.interp(s, grid, alpha_nodes)])
         return time_dynamics(y[None, :], u, forces, omega, alpha, jacobians=False).f[0]
 
     def ground(t: float, y: Array) -> float:
