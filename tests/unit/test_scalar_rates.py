@@ -31,7 +31,7 @@ def test_scalar_rates_match_vectorized_dynamics(omega: float) -> None:
         sigma = rng.uniform(-1.4, 1.4)
         u = np.array([[np.cos(sigma), np.sin(sigma)]])
         ref = time_dynamics(y[None, :], u, forces, omega, jacobians=False).f[0]
-        _, lift, drag, _ = forces.lift_drag(float(y[0]), float(y[3]))
+        _, lift, drag, _ = forces.lift_drag(y[0], y[3])
         fast = time_rates(y, float(u[0, 0]), float(u[0, 1]), float(lift), float(drag), omega)
         # the same formulas in another order of operations: equal to a few ulps of the largest term
         np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=1e-14)

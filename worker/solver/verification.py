@@ -84,7 +84,7 @@ def propagate(
         s = _energy(y) if by_energy else t
         sigma = float(np.interp(s, grid, bank))
         if alpha_nodes is None:  # scheduled alpha: the scalar fast path
-            _, lift, drag, _ = forces.lift_drag(float(y[0]), float(y[3]))
+            _, lift, drag, _ = forces.lift_drag(y[0], y[3])  # numpy scalars: no array overhead
             return time_rates(y, math.cos(sigma), math.sin(sigma), float(lift), float(drag), omega)
         u[0, 0], u[0, 1] = math.cos(sigma), math.sin(sigma)
         alpha = np.array([np.interp(s, grid, alpha_nodes)])
