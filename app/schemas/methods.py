@@ -120,8 +120,172 @@ class EnergyScpOptions(StrictModel):
     )
 
 
+class FohStopTolerance(StrictModel):
+    """Convergence test of the time-domain SCP: every node moves less than these between
+    iterations, the interval lengths less than ``interval_s`` and the cost by less than
+    ``relative_cost``. Tighter than paper 002's (1000 m, 1 deg, 1 deg, 100 m/s, 1 deg, 1 deg, 5 s)
+    so that the converged nodes match their own propagation to Table 4's residuals."""
+
+    altitude_m: float = Field(100.0, gt=0, description="Altitude change tolerance, m.")
+    longitude_deg: float = Field(0.02, gt=0, description="Longitude change tolerance, deg.")
+    latitude_deg: float = Field(0.02, gt=0, description="Latitude change tolerance, deg.")
+    velocity_m_s: float = Field(5.0, gt=0, description="Speed change tolerance, m/s.")
+    flight_path_angle_deg: float = Field(
+        0.05, gt=0, description="Flight path angle change tolerance, deg."
+    )
+    heading_deg: float = Field(0.05, gt=0, description="Heading change tolerance, deg.")
+    bank_deg: float = Field(2.0, gt=0, description="Bank angle change tolerance, deg.")
+    interval_s: float = Field(2.0, gt=0, description="Interval length change tolerance, s.")
+    relative_cost: float = Field(
+        1e-3, gt=0, description="Relative change of the objective below which it has settled."
+    )
+
+
+class FohPtrOptions(StrictModel):
+    """Time-domain SCP with exact first-order-hold discretization and an adaptive time grid
+    (Ma, Chen, Wang & Zhang 2023, paper 002): bank angle as a state, bank rate as the control,
+    penalized trust region (PTR). Departures from the paper are listed in docs/methods/foh-ptr.md.
+    """
+
+    name: Literal["foh-ptr"] = Field("foh-ptr", description="Method name.")
+    nodes: int = Field(
+        40,
+        ge=3,
+        le=MAX_NODES,
+        description=f"Temporal nodes (N + 1 for N intervals), 3..{MAX_NODES}.",
+    )
+    grid: Literal["adaptive", "uniform"] = Field(
+        "uniform",
+        description='"adaptive": interval lengths are decision variables (time dilation, paper '
+        '002 sec. 3.1); "uniform": fixed equal intervals. Uniform is the default until the '
+        "adaptive grid keeps the heat-rate peak within its limit between nodes (see "
+        "docs/methods/foh-ptr.md).",
+    )
+    discretization: Literal["exact_foh", "trapezoid"] = Field(
+        "exact_foh",
+        description='"exact_foh": inverse-free exact FOH maps stitched to the propagated '
+        'reference (paper 002 Theorem 1, eq. 24); "trapezoid": the trapezoidal rule (for '
+        "comparison; needs many more nodes).",
+    )
+    max_iterations: int = Field(
+        30, ge=1, le=MAX_ITERATIONS, description=f"Most SCP iterations, 1..{MAX_ITERATIONS}."
+    )
+    time_limit_s: float = Field(
+        120.0,
+        gt=0,
+        le=MAX_TIME_LIMIT_S,
+        description=f"Wall-clock limit of the whole solve, s, in (0, {MAX_TIME_LIMIT_S:g}].",
+    )
+    conic_backend: Literal["clarabel", "cvxpy"] = Field(
+        "clarabel",
+        description='Convex solver interface: "clarabel" directly, or through cvxpy.',
+    )
+    fallback_solver: Literal["ECOS", "SCS"] | None = Field(
+        None,
+        description="cvxpy solver tried when the primary one fails on a subproblem; none = no "
+        "fallback.",
+    )
+    conic_time_limit_s: float | None = Field(
+        None,
+        gt=0,
+        le=MAX_TIME_LIMIT_S,
+        description="Wall-clock limit of each convex subproblem, s; none = only the overall limit.",
+    )
+    foh_substeps: int = Field(
+        8,
+        ge=1,
+        le=200,
+        description="Fixed RK4 steps per interval of the exact FOH integration (all intervals "
+        "at once).",
+    )
+    interval_min_s: float = Field(
+        10.0, gt=0, description="Shortest interval of the adaptive grid (Delta_min), s."
+    )
+    interval_max_s: float = Field(
+        150.0, gt=0, description="Longest interval of the adaptive grid (Delta_max), s."
+    )
+    interval_trust_s: float = Field(
+        50.0,
+        gt=0,
+        description="Largest change of an interval length per iteration (DeltaT_max), s.",
+    )
+    weight_trust_region: float = Field(
+        0.1,
+        gt=0,
+        description="Initial weight w_tr of the penalized trust region sum ||dz||^2 + ||dw||^2 "
+        "on scaled deviations.",
+    )
+    weight_trust_region_min: float = Field(
+        0.02, gt=0, description="Smallest trust weight the adaptation may reach."
+    )
+    trust_factor: float = Field(
+        2.0,
+        ge=1,
+        description="Factor by which the trust weight grows when the last step's defect (its "
+        "propagation minus its nodes, in scaled units) exceeds defect_high, and shrinks below "
+        "defect_low; 1 keeps it fixed.",
+    )
+    defect_high: float = Field(1.0, gt=0, description="Defect above which w_tr grows.")
+    defect_low: float = Field(0.1, gt=0, description="Defect below which w_tr shrinks.")
+    weight_trust_interval: float = Field(
+        0.0,
+        ge=0,
+        description="Weight w_tr2 of sum (s - s_bar)^2 on scaled interval changes (the paper omits "
+        "it: 0).",
+    )
+    weight_nonlinear: float = Field(
+        1.0e4,
+        ge=0,
+        description="Weight w_nl of the second-order path-limit term sum (V - V_bar)^2 / V_bar^2 "
+        "(paper 002 eq. 26).",
+    )
+    weight_no_fly_zone: float = Field(
+        1.0,
+        ge=0,
+        description="Weight w_NFZ of the squared distance to a zone's centre over the node window "
+        "around the closest approach (paper 002 sec. 3.3.2), per zone radius squared.",
+    )
+    no_fly_zone_window: int = Field(
+        3, ge=0, le=50, description="Nodes on each side of the closest approach in the window."
+    )
+    no_fly_zone_engage_deg: float = Field(
+        0.2,
+        ge=0,
+        description="The distance penalty acts only once the reference comes within this of a "
+        "zone's edge, deg (a zone the path clears is left alone).",
+    )
+    weight_virtual_control: float = Field(
+        1.0e3,
+        gt=0,
+        description="Weight of the L1 buffer on each fixed terminal condition (virtual control, "
+        "per scaled unit); keeps early subproblems feasible, must vanish at convergence.",
+    )
+    weight_virtual_control_initial: float = Field(
+        30.0,
+        gt=0,
+        description="Virtual-control weight of the first iteration; it grows by "
+        "virtual_control_growth per iteration up to weight_virtual_control (continuation: "
+        "early linearizations close the terminal miss gradually).",
+    )
+    virtual_control_growth: float = Field(
+        2.0, ge=1, description="Factor by which the virtual-control weight grows per iteration."
+    )
+    initial_bank_deg: float | None = Field(
+        None,
+        ge=-90,
+        le=90,
+        description="Constant bank of the propagated initial reference, deg; none = the best of "
+        "a sweep of constant banks (closest to the terminal conditions).",
+    )
+    stop_tolerance: FohStopTolerance = Field(
+        default_factory=FohStopTolerance,
+        description="Per-state change below which the iteration has converged.",
+    )
+
+
 METHOD_OPTIONS: dict[str, type[StrictModel]] = {
     "energy-scp": EnergyScpOptions,
+    "foh-ptr": FohPtrOptions,
 }
 """Options model of every method, by method name."""
 
@@ -137,7 +301,7 @@ def _default_name(value: Any) -> Any:
 
 
 MethodSpec = Annotated[
-    Annotated[EnergyScpOptions, Field(discriminator="name")],
+    Annotated[EnergyScpOptions | FohPtrOptions, Field(discriminator="name")],
     untagged_errors("name"),
     BeforeValidator(_default_name),
 ]

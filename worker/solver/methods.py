@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.schemas import METHOD_OPTIONS, FieldIssue, ProblemDocument
+from app.schemas.methods import FohPtrOptions
 from worker.solver.method_result import IterationSink, MethodResult, StopCheck
 from worker.solver.problem import EntryProblem
 
@@ -209,6 +210,125 @@ def _run_energy_scp(
     )
 
 
+FOH_PTR_OBJECTIVES = (
+    "max_terminal_velocity",
+    "min_heat_load",
+    "max_final_latitude",
+    "min_final_latitude",
+    "max_final_longitude",
+    "min_final_longitude",
+)
+
+
+def _check_foh_ptr(doc: ProblemDocument) -> list[FieldIssue]:
+    """Features the time-domain FOH method of paper 002 cannot express."""
+    name = "foh-ptr"
+    out: list[FieldIssue] = []
+    if doc.final_time.kind != "fixed":
+        out.append(
+            _issue(
+                "final_time",
+                f"{name} needs a fixed final time (its grid is time with interval lengths "
+                'summing to it); give final_time {"kind": "fixed", "value_s": ...}',
+            )
+        )
+    if doc.vehicle.angle_of_attack.mode == "optimized":
+        out.append(
+            _issue(
+                "vehicle.angle_of_attack",
+                f"{name} flies a scheduled angle of attack; "
+                "give a velocity_schedule, table or constant",
+            )
+        )
+    if doc.vehicle.aerodynamics.model == "parabolic_polar":
+        out.append(
+            _issue(
+                "vehicle.aerodynamics",
+                f"{name} needs CL and CD as functions of angle "
+                "of attack (polynomial or table), not a normalized-lift polar",
+            )
+        )
+    if doc.control_limits.alpha_rate_max_deg_s is not None:
+        out.append(
+            _issue(
+                "control_limits.alpha_rate_max_deg_s",
+                f"{name} does not optimize the angle of attack",
+            )
+        )
+    if doc.waypoints:
+        out.append(_issue("waypoints", f"{name} does not handle waypoints yet"))
+    if doc.energy is not None:
+        out.append(
+            _issue(
+                "energy",
+                f"{name} works in time and ignores energy bounds; leave energy out",
+            )
+        )
+    for i, term in enumerate(doc.objective.terms):
+        if term.name not in FOH_PTR_OBJECTIVES:
+            out.append(
+                _issue(
+                    f"objective.terms[{i}].name",
+                    f"{name} cannot optimize "
+                    f"{term.name!r}; it supports {', '.join(FOH_PTR_OBJECTIVES)}",
+                )
+            )
+        if term.name == "min_heat_load" and doc.path_constraints.heat_rate is None:
+            out.append(
+                _issue(
+                    "path_constraints.heat_rate",
+                    "min_heat_load needs the heating "
+                    "model (k_q and exponents) in path_constraints.heat_rate",
+                )
+            )
+    options = doc.method
+    if isinstance(options, FohPtrOptions):
+        lo, hi = options.interval_min_s, options.interval_max_s
+        if lo > hi:
+            out.append(
+                _issue(
+                    "method.interval_min_s",
+                    f"interval_min_s {lo:g} exceeds interval_max_s {hi:g}",
+                    "inconsistent",
+                )
+            )
+        if doc.final_time.kind == "fixed":
+            span = doc.final_time.value_s - doc.initial_state.time_s
+            n = options.nodes - 1
+            if options.grid == "adaptive" and not n * lo <= span <= n * hi:
+                out.append(
+                    _issue(
+                        "method.nodes",
+                        f"{n} intervals of {lo:g}..{hi:g} s cannot span the flight time "
+                        f"{span:g} s; change nodes or the interval bounds",
+                        "inconsistent",
+                    )
+                )
+    return out
+
+
+def _run_foh_ptr(
+    model: EntryProblem,
+    options: Any,
+    on_iteration: IterationSink | None,
+    should_stop: StopCheck | None,
+) -> MethodResult:
+    """Paper 002's time-domain SCP, adapted to the common method result."""
+    from worker.solver.scp.foh_ptr import run_foh_ptr, to_trajectory
+
+    out = run_foh_ptr(model, options, on_iteration=on_iteration, should_stop=should_stop)
+    return MethodResult(
+        status=out.status,
+        trajectory=to_trajectory(model, out) if out.history else None,
+        history=out.history,
+        conic_solve_s=out.conic_solve_s,
+        objective_terms=dict(out.objective_terms),
+        failure_code=out.failure_code,
+        failure_message=out.failure_message,
+        extra=dict(out.extra),
+    )
+
+
 METHODS: dict[str, MethodInfo] = {
     "energy-scp": MethodInfo(
         name="energy-scp",
@@ -227,6 +347,29 @@ METHODS: dict[str, MethodInfo] = {
         objectives=ENERGY_SCP_OBJECTIVES,
         check=_check_energy_scp,
         run=_run_energy_scp,
+    ),
+    "foh-ptr": MethodInfo(
+        name="foh-ptr",
+        title="Time-domain SCP with exact FOH discretization and adaptive grid (experimental: "
+        "converges to local optima below the reference; see docs/methods/foh-ptr.md)",
+        paper="Ma, Chen, Wang & Zhang, Real-Time Trajectory Planning for Hypersonic Entry Using "
+        "Adaptive Non-Uniform Discretization and Convex Optimization (paper 002)",
+        features=(
+            "time as independent variable, fixed final time",
+            "bank angle as a state, bank rate as the control (first-order hold)",
+            "inverse-free exact FOH discretization stitched to the propagated reference",
+            "adaptive non-uniform grid (interval lengths as decision variables)",
+            "path limits (heat rate, dynamic pressure, load factor), log-transformed",
+            "no-fly zones",
+            "bank magnitude and bank rate limits",
+            "terminal conditions fixed, range, free or soft",
+            "rotating or non-rotating planet",
+            "exponential or US76 atmosphere",
+            "polynomial or tabulated aerodynamics with a scheduled angle of attack",
+        ),
+        objectives=FOH_PTR_OBJECTIVES,
+        check=_check_foh_ptr,
+        run=_run_foh_ptr,
     ),
 }
 

@@ -31,6 +31,7 @@ UNITS = {
     "min_final_latitude": "deg",
     "max_final_longitude": "deg",
     "min_final_longitude": "deg",
+    "max_terminal_velocity": "m/s",
 }
 
 

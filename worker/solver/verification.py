@@ -1,7 +1,9 @@
 """Verification: integrate the returned controls through the full nonlinear time-domain dynamics.
 
 Applied to every result of every method. The bank profile is interpolated linearly in the
-method's own independent variable (energy for energy-domain methods, time otherwise), evaluated
+method's own independent variable (energy for energy-domain methods, time otherwise), or, when
+the method gives the bank rate at the nodes (bank as a state with a first-order-hold rate), the
+bank is integrated exactly from each node (piecewise quadratic in time); it is evaluated
 on the propagated state, and the integration (scipy DOP853, rtol 1e-10) stops where the method's
 trajectory ends (final energy or final time). The report compares the propagated end state with
 the targets and with the optimized trajectory, measures the largest deviation along the path,
@@ -51,6 +53,21 @@ class OptimizedTrajectory:
     t: Array  # (K,) nondimensional time since the start
     bank: Array  # (K,) radians
     alpha_deg: Array | None = None  # (K,) when alpha is a decision variable
+    bank_rate: Array | None = None  # (K,) d(bank)/dt at the nodes (time grid), first-order hold
+
+
+def bank_profile(traj: OptimizedTrajectory, s: Any) -> float:
+    """Bank angle at grid value ``s``: linear between nodes, or, with ``bank_rate`` on a time grid,
+    the exact integral of the first-order-hold rate from the interval's node (piecewise quadratic).
+    """
+    grid, bank = traj.grid, traj.bank
+    if traj.bank_rate is None or traj.grid_kind != "time":
+        return float(np.interp(s, grid, bank))
+    k = int(np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2))
+    h = float(grid[k + 1] - grid[k])
+    dt = float(np.clip(s - grid[k], 0.0, h))
+    w0, w1 = float(traj.bank_rate[k]), float(traj.bank_rate[k + 1])
+    return float(bank[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
 
 
 def _energy(y: Array) -> Array:
@@ -75,14 +92,13 @@ def propagate(
     """Integrate the time-domain dynamics under the trajectory's bank profile; scipy's solution."""
     forces, omega = problem.forces, problem.omega
     grid = traj.grid
-    bank = traj.bank
     alpha_nodes = traj.alpha_deg
     by_energy = traj.grid_kind == "energy"
     u = np.zeros((1, 2))
 
     def rhs(t: float, y: Array) -> Array:
         s = _energy(y) if by_energy else t
-        sigma = float(np.interp(s, grid, bank))
+        sigma = bank_profile(traj, s)
         if alpha_nodes is None:  # scheduled alpha: the scalar fast path
             _, lift, drag, _ = forces.lift_drag(y[0], y[3])  # numpy scalars: no array overhead
             return time_rates(y, math.cos(sigma), math.sin(sigma), float(lift), float(drag), omega)

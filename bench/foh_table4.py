@@ -1,0 +1,86 @@
+"""Paper 002 Table 4 repeated: adaptive vs uniform exact FOH vs uniform trapezoid, case 1.
+
+Per configuration: status, iterations, wall time of the SCP loop, sum of conic solve times,
+their ratio, terminal velocity, and the propagated terminal residuals (verification's
+terminal_error_vs_optimized) and largest path-limit ratio between nodes. One solve each after a
+warm-up (imports, caches); absolute times depend on the machine, ratios much less.
+
+    python -m bench.foh_table4
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from app.schemas import ProblemDocument
+from worker.solver.problem import build_problem
+from worker.solver.scenarios import get_scenario
+from worker.solver.scp.foh_ptr import run_foh_ptr, to_trajectory
+from worker.solver.verification import verify
+
+CONFIGS = (
+    [("adaptive", "exact_foh", n) for n in (40, 50, 60)]
+    + [("uniform", "exact_foh", n) for n in (40, 50, 60)]
+    + [("uniform", "trapezoid", n) for n in (200, 300, 400)]
+)
+
+
+def run(grid: str, discretization: str, nodes: int) -> dict[str, object]:
+    """One solve of case 1 with the given grid, discretization and node count."""
+    raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
+    raw["method"] = {
+        "name": "foh-ptr",
+        "nodes": nodes,
+        "grid": grid,
+        "discretization": discretization,
+    }
+    doc = ProblemDocument.model_validate(raw)
+    model = build_problem(doc)
+    start = time.perf_counter()
+    out = run_foh_ptr(model, doc.method)
+    wall = time.perf_counter() - start
+    rep = verify(model, to_trajectory(model, out))
+    err = rep["terminal_error_vs_optimized"]
+    ratio = max(v["ratio"] for v in rep["path_maxima"].values() if "ratio" in v)
+    return {
+        "status": out.status,
+        "iterations": len(out.history),
+        "wall": wall,
+        "conic": out.conic_solve_s,
+        "vf": out.objective_terms.get("max_terminal_velocity", float("nan")),
+        "err": err,
+        "path": ratio,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", choices=("adaptive", "uniform", "trapezoid"), default=None)
+    args = parser.parse_args()
+    run("uniform", "exact_foh", 40)  # warm-up
+    print(
+        "| grid | discretization | nodes | status | iterations | wall s | conic s | wall/conic "
+        "| Vf m/s | dr m | dlon deg | dlat deg | dV m/s | dgamma deg | dpsi deg | path max ratio |"
+    )
+    print("|---" * 16 + "|")
+    for grid, disc, nodes in CONFIGS:
+        key = "trapezoid" if disc == "trapezoid" else grid
+        if args.only is not None and key != args.only:
+            continue
+        r = run(grid, disc, nodes)
+        e = r["err"]
+        assert isinstance(e, dict)
+        print(
+            f"| {grid} | {disc} | {nodes} | {r['status']} | {r['iterations']} | "
+            f"{r['wall']:.3f} | {r['conic']:.3f} | {float(r['wall']) / float(r['conic']):.2f} | "  # type: ignore[arg-type]
+            f"{r['vf']:.1f} | {abs(e['altitude_m']):.2f} | {abs(e['longitude_deg']):.4f} | "
+            f"{abs(e['latitude_deg']):.4f} | {abs(e['velocity_m_s']):.3f} | "
+            f"{abs(e['flight_path_angle_deg']):.4f} | {abs(e['heading_deg']):.4f} | "
+            f"{r['path']:.3f} |",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,96 @@
+"""The time-domain SCP of paper 002 ("foh-ptr") end to end on its built-in case-1 scenario.
+
+Acceptance figures of the issue: terminal velocity within 0.3 % of 971.03 m/s (independent NLP
+collocation, 801 nodes), at most 15 iterations, propagated terminal residuals within Table 4's
+for 40 nodes, path limits within 1 % between nodes. Which of them are met is recorded below and
+in docs/methods/foh-ptr.md; the unmet ones are strict expected failures so a fix shows up.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Any
+
+import pytest
+
+from app.schemas import ProblemDocument
+from worker.solver.api import solve_problem
+from worker.solver.methods import check_support
+from worker.solver.scenarios import get_scenario
+
+REFERENCE_VF_M_S = 971.03
+TABLE4_40_NODES = {  # paper 002 Table 4, proposed method, 40 nodes (rounded up)
+    "altitude_m": 25.0,
+    "longitude_deg": 0.05,
+    "latitude_deg": 0.02,
+    "velocity_m_s": 2.0,
+    "flight_path_angle_deg": 0.05,
+    "heading_deg": 0.1,
+}
+
+
+def _doc(name: str = "rlv-max-terminal-velocity", **method: Any) -> ProblemDocument:
+    raw = dict(get_scenario(name).problem)
+    raw["method"] = {**raw["method"], **method}
+    return ProblemDocument.model_validate(raw)
+
+
+@pytest.fixture(scope="module")
+def adaptive() -> dict[str, Any]:
+    return solve_problem(_doc(grid="adaptive"))
+
+
+@pytest.fixture(scope="module")
+def uniform() -> dict[str, Any]:
+    return solve_problem(_doc(grid="uniform"))
+
+
+def test_converges_with_small_residuals(adaptive: dict[str, Any], uniform: dict[str, Any]) -> None:
+    for result in (adaptive, uniform):
+        assert result["timing"]["iterations"] <= 15
+        assert all(h["conic_status"] == "optimal" for h in result["history"])
+        assert result["history"][-1]["virtual_control_norm"] <= 1e-6
+        err = result["verification"]["terminal_error_vs_optimized"]
+        for key, bound in TABLE4_40_NODES.items():
+            assert abs(err[key]) <= bound, (key, err[key])
+
+
+def test_time_dilation_holds_in_every_subproblem(adaptive: dict[str, Any]) -> None:
+    for h in adaptive["history"]:
+        t = h["extra"]["node_times_s"]
+        steps = [b - a for a, b in itertools.pairwise(t)]
+        assert min(steps) >= 10.0 - 1e-6  # Delta_min (solver tolerance 1e-8 relative)
+        assert max(steps) <= 150.0 + 1e-6  # Delta_max
+        assert t[-1] == pytest.approx(1600.0, abs=1e-6)  # sum s_k = t_f
+        assert h["extra"]["max_interval_change_s"] <= 50.0 + 1e-6  # DeltaT_max
+
+
+def test_uniform_grid_is_feasible_between_nodes(uniform: dict[str, Any]) -> None:
+    ver = uniform["verification"]
+    for entry in ver["path_maxima"].values():
+        assert entry["ratio"] <= 1.01  # limits respected between nodes within 1 %
+    assert ver["feasible"]
+
+
+@pytest.mark.xfail(strict=True, reason="measured ~941-943 m/s: a poorer local optimum")
+def test_terminal_velocity_matches_reference(uniform: dict[str, Any]) -> None:
+    vf = uniform["objective"]["value"]
+    assert abs(vf / REFERENCE_VF_M_S - 1.0) <= 0.003
+
+
+@pytest.mark.xfail(strict=True, reason="adaptive nodes leave the heat peak between nodes")
+def test_adaptive_grid_is_feasible_between_nodes(adaptive: dict[str, Any]) -> None:
+    for entry in adaptive["verification"]["path_maxima"].values():
+        assert entry["ratio"] <= 1.01
+
+
+def test_support_check_refuses_what_it_cannot_do() -> None:
+    raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
+    raw["final_time"] = {"kind": "free"}
+    raw["objective"] = "min_time"
+    raw["waypoints"] = [
+        {"latitude_deg": 30, "longitude_deg": 0, "radius_deg": 1, "order": 0},
+    ]
+    issues = {i.field for i in check_support(ProblemDocument.model_validate(raw))}
+    assert {"final_time", "objective.terms[0].name", "waypoints"} <= issues
+    assert check_support(_doc()) == []

@@ -1,0 +1,84 @@
+"""Log-transformed path limits linearized in radius and speed (paper 002 eq. 25-26, generalized).
+
+For each limit p(r, V) <= p_max the subproblem keeps ln p(r, V) <= ln p_max linearized about the
+reference: ln p_bar + (p_r / p)(r - r_bar) + (p_V / p)(V - V_bar) <= ln p_max. The paper writes
+the exponential-atmosphere form, where ln p is exactly linear in r and only ln V is nonlinear; here
+the partials are exact for any atmosphere and include the speed dependence of the scheduled angle
+of attack (through CL, CD in the load factor and the heating factor). The second-order term of ln V
+becomes the convex penalty w_nl * sum (V - V_bar)^2 / V_bar^2 (eq. 26) in the objective.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from worker.solver.forces import ForceTerms
+from worker.solver.path_limits import path_values
+from worker.solver.problem import EntryProblem
+
+Array = np.ndarray
+
+LIMIT_NAMES = ("heat_rate", "dynamic_pressure", "load_factor")
+
+
+@dataclass
+class LogPathRows:
+    """Rows g + g_r (r - r_bar) + g_v (V - V_bar) <= 0, one column per active limit.
+
+    ``g`` is ln(p_bar / p_max) (K, m), ``g_r`` and ``g_v`` the partials of ln p (K, m); ``ratio``
+    is p_bar / p_max, reported in the history.
+    """
+
+    names: tuple[str, ...]
+    g: Array
+    g_r: Array
+    g_v: Array
+
+    @property
+    def ratio(self) -> Array:
+        """p / p_max at the reference nodes, (K, m)."""
+        return np.exp(self.g)
+
+
+def active_limits(problem: EntryProblem) -> tuple[str, ...]:
+    """Names of the path limits the problem sets, in ``LIMIT_NAMES`` order."""
+    lim = problem.limits
+    out = []
+    if lim.heat_max_W_m2 is not None and problem.heat_model is not None:
+        out.append("heat_rate")
+    if lim.dynamic_pressure_max_Pa is not None:
+        out.append("dynamic_pressure")
+    if lim.load_factor_max_g is not None:
+        out.append("load_factor")
+    return tuple(out)
+
+
+def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> LogPathRows:
+    """Linearized ln p <= ln p_max at nodes (r, V) with force terms ``ft`` evaluated there."""
+    names = active_limits(problem)
+    k = r.size
+    g = np.zeros((k, len(names)))
+    g_r = np.zeros_like(g)
+    g_v = np.zeros_like(g)
+    lim = problem.limits
+    pv = path_values(problem.forces, problem.heat_model, r, v, ft)
+    for j, name in enumerate(names):
+        if name == "heat_rate":
+            assert lim.heat_max_W_m2 is not None
+            g[:, j] = np.log(pv.heat_rate / lim.heat_max_W_m2)
+            g_r[:, j] = pv.heat_rate_r / pv.heat_rate
+            g_v[:, j] = pv.heat_rate_v / pv.heat_rate
+        elif name == "dynamic_pressure":
+            assert lim.dynamic_pressure_max_Pa is not None
+            g[:, j] = np.log(pv.dynamic_pressure / lim.dynamic_pressure_max_Pa)
+            g_r[:, j] = ft.rho_r / ft.rho
+            g_v[:, j] = 2.0 / v
+        else:
+            assert lim.load_factor_max_g is not None
+            n2 = ft.lift * ft.lift + ft.drag * ft.drag
+            g[:, j] = 0.5 * np.log(n2) - np.log(lim.load_factor_max_g)
+            g_r[:, j] = (ft.lift * ft.lift_r + ft.drag * ft.drag_r) / n2
+            g_v[:, j] = (ft.lift * ft.lift_v + ft.drag * ft.drag_v) / n2
+    return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v)

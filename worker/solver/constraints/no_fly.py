@@ -1,0 +1,52 @@
+"""No-fly-zone constraints linearized about the reference, and the node window of their penalty.
+
+Distance to a zone is the great-circle central angle to its centre, the measure the verification
+uses (paper 002 eq. 6 and 27 use the plane (lon, lat) distance instead, which is distorted by
+cos(latitude) far from the equator). The central angle is convex near the zone, so its tangent
+plane under-estimates it and the linearized exclusion c_bar + grad c . (x - x_bar) >= R is
+conservative. The paper's distance penalty (sec. 3.3.2) is applied only to a window of nodes
+around the reference's closest approach, so the nodes cluster there and not everywhere.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from worker.solver.problem import CircleZone
+
+Array = np.ndarray
+
+
+@dataclass
+class ZoneRows:
+    """Central angle ``c`` (K,) from each node to the zone centre and its partials in lat, lon."""
+
+    c: Array
+    c_lat: Array
+    c_lon: Array
+
+
+def central_angle(lat: Array, lon: Array, zone: CircleZone) -> ZoneRows:
+    """Haversine central angle to ``zone``'s centre with exact partials (rad, per rad)."""
+    dlat = lat - zone.latitude
+    dlon = lon - zone.longitude
+    cz = np.cos(zone.latitude)
+    sh = np.sin(0.5 * dlon)
+    a = np.sin(0.5 * dlat) ** 2 + np.cos(lat) * cz * sh * sh
+    a = np.clip(a, 1e-300, 1.0 - 1e-16)
+    c = 2.0 * np.arcsin(np.sqrt(a))
+    dc_da = 1.0 / np.sqrt(a * (1.0 - a))
+    a_lat = 0.5 * np.sin(dlat) - np.sin(lat) * cz * sh * sh
+    a_lon = 0.5 * np.cos(lat) * cz * np.sin(dlon)
+    return ZoneRows(c=c, c_lat=dc_da * a_lat, c_lon=dc_da * a_lon)
+
+
+def penalty_window(clearance: Array, half_width: int) -> Array:
+    """Boolean mask of the nodes within ``half_width`` of the smallest ``clearance``."""
+    k = clearance.size
+    i = int(np.argmin(clearance))
+    mask = np.zeros(k, dtype=bool)
+    mask[max(0, i - half_width) : min(k, i + half_width + 1)] = True
+    return mask

@@ -1,0 +1,413 @@
+"""Time-domain SCP with exact FOH discretization and an adaptive grid (paper 002, Algorithm 1).
+
+Loop: discretize the bank-state dynamics exactly about the reference on its current grid
+(transcription.foh_exact, Theorem 1 / eq. 24; or the trapezoidal rule for comparison), linearize
+the log path limits (eq. 25-26) and the no-fly zones (eq. 27), solve Problem 2 (a QP) with the
+penalized trust region, take its solution as the next reference, and stop when no node, bank
+angle or interval length moved more than its tolerance and the objective has settled.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from worker.solver.conic import ConicBackend, ConicStatus, make_backend
+from worker.solver.constraints.log_path import active_limits, log_path_rows
+from worker.solver.constraints.no_fly import central_angle, penalty_window
+from worker.solver.dynamics_bank_state import NZ
+from worker.solver.problem import EntryProblem
+from worker.solver.scp.foh_objective import TimeObjective
+from worker.solver.scp.history import IterationRecord
+from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
+from worker.solver.transcription.foh_subproblem import (
+    FohSubproblem,
+    GridLimits,
+    SubproblemData,
+    TerminalRow,
+)
+from worker.solver.transcription.time_grid import initial_reference
+from worker.solver.transcription.time_trapezoid import trapezoid_maps
+from worker.solver.verification import OptimizedTrajectory
+
+Array = np.ndarray
+ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed_out"]
+
+STATE_KEYS = (
+    "altitude_m",
+    "longitude_deg",
+    "latitude_deg",
+    "velocity_m_s",
+    "flight_path_angle_deg",
+    "heading_deg",
+)
+
+
+def state_scale(problem: EntryProblem) -> Array:
+    """Unit of each scaled state deviation: 1 km, 0.5 deg, 0.5 deg, 50 m/s, 0.5 deg, 1 deg, 5 deg.
+
+    Roughly one late-iteration step of each state, so the trust region treats them alike.
+    """
+    sc = problem.scales
+    d = math.radians
+    return np.array(
+        [1e3 / sc.radius_m, d(0.5), d(0.5), 50.0 / sc.speed_m_s, d(0.5), d(1.0), d(5.0)]
+    )
+
+
+@dataclass
+class FohOutcome:
+    """What the loop produced: final nodes, rates, interval lengths, status and history."""
+
+    status: ScpStatus
+    z: Array
+    w: Array
+    s: Array
+    history: list[IterationRecord]
+    failure_code: str | None = None
+    failure_message: str | None = None
+    conic_solve_s: float = 0.0
+    objective_terms: dict[str, float] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _terminal_rows(problem: EntryProblem, scale: Array, weight_virtual: float) -> list[TerminalRow]:
+    """Terminal rows; fixed conditions get an L1-penalized buffer (virtual control, PTR) so an
+    early linearization that cannot reach them in one step stays feasible."""
+    rows = []
+    for j, key in enumerate(STATE_KEYS):
+        t = problem.terminal[key]
+        if t.kind == "fixed":
+            rows.append(
+                TerminalRow(
+                    j,
+                    "soft",
+                    value=float(t.value or 0.0),
+                    weight=weight_virtual / scale[j],
+                    virtual=True,
+                )
+            )
+        elif t.kind == "soft":
+            rows.append(TerminalRow(j, "soft", value=float(t.value or 0.0), weight=t.weight))
+        elif t.kind == "range":
+            rows.append(TerminalRow(j, "range", lo=float(t.lo or 0.0), hi=float(t.hi or 0.0)))
+    return rows
+
+
+def _tolerances(options: Any, problem: EntryProblem) -> tuple[Array, float]:
+    """Stop tolerances on the 7 states (nondimensional) and on the interval lengths."""
+    tol = options.stop_tolerance
+    sc = problem.scales
+    d = math.radians
+    states = np.array(
+        [
+            tol.altitude_m / sc.radius_m,
+            d(tol.longitude_deg),
+            d(tol.latitude_deg),
+            tol.velocity_m_s / sc.speed_m_s,
+            d(tol.flight_path_angle_deg),
+            d(tol.heading_deg),
+            d(tol.bank_deg),
+        ]
+    )
+    return states, tol.interval_s / sc.time_s
+
+
+def _state_change(m: Array, problem: EntryProblem) -> dict[str, float]:
+    """Largest change of each state (nondimensional ``m``) in SI units and degrees."""
+    sc = problem.scales
+    return {
+        "altitude_m": float(m[0] * sc.radius_m),
+        "longitude_deg": math.degrees(m[1]),
+        "latitude_deg": math.degrees(m[2]),
+        "velocity_m_s": float(m[3] * sc.speed_m_s),
+        "flight_path_angle_deg": math.degrees(m[4]),
+        "heading_deg": math.degrees(m[5]),
+        "bank_deg": math.degrees(m[6]),
+    }
+
+
+class _Linearizer:
+    """Builds the per-iteration ``SubproblemData`` (maps, path rows, zone rows, costs)."""
+
+    def __init__(self, problem: EntryProblem, options: Any, scale: Array) -> None:
+        self.problem = problem
+        self.options = options
+        self.scale = scale
+        self.limits = active_limits(problem)
+        self.zones = problem.no_fly_zones
+        self.margin = 0.0
+        fixed_bank = problem.document.initial_state.bank_deg
+        self.initial = (
+            np.r_[problem.y0, math.radians(fixed_bank)]
+            if fixed_bank is not None
+            else (problem.y0.copy())
+        )
+        self.objective: TimeObjective | None = None
+        self.windows: list[list[int]] = []
+        self.zone_clearance: list[float] = []
+
+    def maps(self, z: Array, w: Array, s: Array) -> IntervalMaps:
+        p, o = self.problem, self.options
+        if o.discretization == "trapezoid":
+            return trapezoid_maps(z, w, s, p.forces, p.omega)
+        return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps)
+
+    def data(self, z: Array, w: Array, s: Array) -> tuple[SubproblemData, Array]:
+        """Subproblem data about (z, w, s) and the path-limit ratios at the nodes (K, m)."""
+        p, o = self.problem, self.options
+        k = z.shape[0]
+        mp = self.maps(z, w, s)
+        ft = p.forces.terms(z[:, 0], z[:, 3])
+        rows = log_path_rows(p, z[:, 0], z[:, 3], ft)
+        if self.objective is None:
+            self.objective = TimeObjective(p, self.scale, z, s)
+        grad_z, grad_s = self.objective.gradients(z, s, ft)
+        quad = np.zeros((k, NZ))
+        quad_c = np.zeros((k, NZ))
+        if rows.names and o.weight_nonlinear > 0:
+            quad[:, 3] = o.weight_nonlinear / z[:, 3] ** 2  # eq. 26: (V - V_bar)^2 / V_bar^2
+            quad_c[:, 3] = z[:, 3]
+        nzone = len(self.zones)
+        zc = np.zeros((nzone, k))
+        zlat = np.zeros((nzone, k))
+        zlon = np.zeros((nzone, k))
+        weighted_c = np.zeros((k, NZ))
+        self.windows = []
+        self.zone_clearance = []
+        for i, zone in enumerate(self.zones):
+            rows_z = central_angle(z[:, 2], z[:, 1], zone)
+            clearance = rows_z.c - zone.radius
+            zc[i] = clearance - self.margin
+            zlat[i] = rows_z.c_lat
+            zlon[i] = rows_z.c_lon
+            self.zone_clearance.append(math.degrees(float(np.min(clearance))))
+            engaged = float(np.min(clearance)) <= math.radians(o.no_fly_zone_engage_deg)
+            if engaged and o.weight_no_fly_zone > 0:
+                mask = penalty_window(clearance, o.no_fly_zone_window)
+                self.windows.append([int(j) for j in np.flatnonzero(mask)])
+                wz = o.weight_no_fly_zone / zone.radius**2
+                coslat = math.cos(zone.latitude)
+                quad[mask, 2] += wz
+                weighted_c[mask, 2] += wz * zone.latitude
+                quad[mask, 1] += wz * coslat**2
+                weighted_c[mask, 1] += wz * coslat**2 * zone.longitude
+            else:
+                self.windows.append([])
+        for j in (1, 2):
+            on = quad[:, j] > 0
+            quad_c[on, j] = weighted_c[on, j] / quad[on, j]
+        data = SubproblemData(
+            z=z,
+            w=w,
+            s=s,
+            maps=mp,
+            initial=self.initial,
+            path_g=rows.g,
+            path_gr=rows.g_r,
+            path_gv=rows.g_v,
+            zone_c=zc,
+            zone_clat=zlat,
+            zone_clon=zlon,
+            grad_z=grad_z,
+            grad_s=grad_s,
+            quad_z=quad,
+            quad_center=quad_c,
+        )
+        return data, rows.ratio
+
+
+def run_foh_ptr(
+    problem: EntryProblem,
+    options: Any,
+    *,
+    on_iteration: Callable[[IterationRecord], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    backend: ConicBackend | None = None,
+) -> FohOutcome:
+    """Run paper 002's SCP on ``problem`` (fixed final time) with the method ``options``."""
+    start = time.perf_counter()
+    if problem.final_time is None:
+        raise ValueError("foh-ptr needs a fixed final time")
+    sc = problem.scales
+    nodes = options.nodes
+    scale = state_scale(problem)
+    ref = initial_reference(problem, nodes, options.initial_bank_deg)
+    z, w, s = ref.z, ref.w, ref.s
+    adaptive = options.grid == "adaptive"
+    grid = (
+        GridLimits(
+            delta_min=options.interval_min_s / sc.time_s,
+            delta_max=options.interval_max_s / sc.time_s,
+            delta_trust=options.interval_trust_s / sc.time_s,
+            final_time=problem.final_time,
+        )
+        if adaptive
+        else None
+    )
+    lin = _Linearizer(problem, options, scale)
+    sub = FohSubproblem(
+        nodes,
+        state_scale=scale,
+        rate_scale=math.radians(1.0) * sc.time_s,
+        interval_scale=10.0 / sc.time_s,
+        n_initial=lin.initial.size,
+        terminal=_terminal_rows(problem, scale, options.weight_virtual_control),
+        bank_max=problem.bank_max,
+        bank_rate_max=problem.bank_rate_max,
+        n_limits=len(lin.limits),
+        n_zones=len(problem.no_fly_zones),
+        grid=grid,
+        weight_trust_region=options.weight_trust_region,
+        weight_trust_interval=options.weight_trust_interval,
+        weight_buffer=options.weight_virtual_control,
+    )
+    backend = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
+    tol_z, tol_s = _tolerances(options, problem)
+    history: list[IterationRecord] = []
+    conic_total = 0.0
+    deadline = start + options.time_limit_s
+    prev_cost: float | None = None
+    w_tr = options.weight_trust_region
+    values: dict[str, float] = {}
+    extra: dict[str, Any] = {"initial_bank_deg": ref.bank_deg}
+
+    def outcome(status: ScpStatus, code: str | None = None, msg: str | None = None) -> FohOutcome:
+        return FohOutcome(status, z, w, s, history, code, msg, conic_total, values, extra)
+
+    for it in range(1, options.max_iterations + 1):
+        it_start = time.perf_counter()
+        if should_stop is not None and should_stop():
+            return outcome("cancelled", "cancelled", f"cancelled before iteration {it}")
+        remaining = deadline - it_start
+        if remaining <= 0:
+            return outcome(
+                "timed_out",
+                "time_limit",
+                f"time limit {options.time_limit_s} s reached after {it - 1} iterations",
+            )
+        sub.set_virtual_factor(
+            min(options.virtual_control_growth ** (it - 1), 1.0e6)
+            * options.weight_virtual_control_initial
+            / options.weight_virtual_control
+            if options.weight_virtual_control_initial < options.weight_virtual_control
+            else 1.0
+        )
+        if sub.w_buf > options.weight_virtual_control:
+            sub.set_virtual_factor(1.0)
+        data, ratio = lin.data(z, w, s)
+        lin_s = time.perf_counter() - it_start
+        defect = float(np.max(np.abs(data.maps.x_prop - z[1:]) / scale[None, :]))
+        if it > 1:  # adapt the trust weight to how well the last step was predicted
+            if defect > options.defect_high:
+                w_tr = min(w_tr * options.trust_factor, 1e3)
+            elif defect < options.defect_low:
+                w_tr = max(w_tr / options.trust_factor, options.weight_trust_region_min)
+            sub.w_tr = w_tr
+        limit = (
+            remaining
+            if options.conic_time_limit_s is None
+            else min(remaining, options.conic_time_limit_s)
+        )
+        sol = backend.solve(sub.build(data), time_limit_s=limit)
+        conic_total += sol.solve_time_s
+        if not sol.status.usable or sol.x is None:
+            code = {
+                ConicStatus.INFEASIBLE: "infeasible",
+                ConicStatus.TIME_LIMIT: "time_limit",
+            }.get(sol.status, "numerical_error")
+            status: ScpStatus = "timed_out" if code == "time_limit" else "failed"
+            return outcome(
+                status,
+                code,
+                f"iteration {it}: convex subproblem {sol.status.value} "
+                f"({sol.solver}: {sol.raw_status})",
+            )
+        new = sub.unpack(sol.x, data)
+        change = np.max(np.abs(new.z - z), axis=0)
+        change_s = float(np.max(np.abs(new.s - s))) if s.size else 0.0
+        assert lin.objective is not None
+        values = lin.objective.values(new.z, new.s)
+        cost = lin.objective.normalized(values)
+        tr_slack = float(np.sum(new.dz**2) + np.sum(new.dw**2))
+        nl_pen = float(np.sum(data.quad_z[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
+        zone_pen = float(
+            np.sum(data.quad_z[:, 1:3] * (new.z[:, 1:3] - data.quad_center[:, 1:3]) ** 2)
+        )
+        virtual = np.array([t.virtual for t in sub.soft], dtype=bool)
+        weights = np.array([t.weight for t in sub.soft])
+        soft = float(np.dot(weights[~virtual], new.soft_slacks[~virtual]))
+        vc_norm = float(
+            np.sum(new.soft_slacks[virtual] / scale[[t.state for t in sub.soft if t.virtual]])
+            + np.sum(new.buffers)
+        )
+        t_nodes = np.concatenate([[0.0], np.cumsum(new.s)]) * sc.time_s
+        record = IterationRecord(
+            iteration=it,
+            cost=float(sol.objective if sol.objective is not None else np.nan),
+            cost_terms={
+                **{f"objective:{n}": v for n, v in values.items()},
+                "trust_region": options.weight_trust_region * tr_slack,
+                "trust_interval": options.weight_trust_interval * float(np.sum(new.ds**2)),
+                "nonlinear_path": nl_pen,
+                "no_fly_zone": zone_pen,
+                "soft_terminal": soft,
+                "virtual_control": options.weight_virtual_control * vc_norm,
+            },
+            objective_value=next(iter(values.values())) if len(values) == 1 else None,
+            max_state_change=_state_change(change, problem),
+            trust_region_slack=tr_slack,
+            virtual_control_norm=vc_norm,
+            linearization_error=float(defect),
+            nodes_post_corrected=0,
+            relaxation_gap=0.0,
+            conic_status=sol.status.value,
+            conic_solver=sol.solver,
+            conic_solve_s=sol.solve_time_s,
+            conic_setup_s=sol.setup_time_s,
+            iteration_wall_s=time.perf_counter() - it_start,
+            extra={
+                "max_interval_change_s": change_s * sc.time_s,
+                "interval_s_min": float(np.min(new.s) * sc.time_s),
+                "interval_s_max": float(np.max(new.s) * sc.time_s),
+                "path_ratio_at_nodes": {
+                    name: float(np.max(ratio[:, j])) for j, name in enumerate(lin.limits)
+                },
+                "no_fly_zone_clearance_deg": list(lin.zone_clearance),
+                "no_fly_zone_window_nodes": [list(wd) for wd in lin.windows],
+                "discretization_s": lin_s,
+                "weight_trust_region": w_tr,
+                "node_times_s": t_nodes.tolist(),
+            },
+        )
+        history.append(record)
+        if on_iteration is not None:
+            on_iteration(record)
+        z, w, s = new.z, new.w, new.s
+        settled = prev_cost is not None and abs(cost - prev_cost) <= (
+            options.stop_tolerance.relative_cost * max(abs(cost), 1.0)
+        )
+        prev_cost = cost
+        if np.all(change <= tol_z) and change_s <= tol_s and settled and vc_norm <= 1e-6:
+            return outcome("converged")
+    return outcome(
+        "max_iterations", "max_iterations", f"not converged in {options.max_iterations} iterations"
+    )
+
+
+def to_trajectory(problem: EntryProblem, outcome: FohOutcome) -> OptimizedTrajectory:
+    """The nodes as a time-grid trajectory, with the FOH bank rate for exact bank propagation."""
+    t = np.concatenate([[0.0], np.cumsum(outcome.s)])
+    return OptimizedTrajectory(
+        "time",
+        t,
+        outcome.z[:, : NZ - 1].copy(),
+        t,
+        outcome.z[:, NZ - 1].copy(),
+        bank_rate=outcome.w.copy(),
+    )

@@ -1,0 +1,117 @@
+"""Uniform time grid and the initial reference of the time-domain SCP (paper 002 sec. 4).
+
+The initial reference is the propagation of the nonlinear dynamics under a constant bank (the
+paper's "given initial control") on a uniform grid. When no bank is given, a sweep of constant
+banks is propagated at once (vectorized over candidates) and the one ending closest to the
+terminal conditions, without reaching the ground, is kept.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
+from worker.solver.problem import STATE_NAMES, EntryProblem
+
+Array = np.ndarray
+
+GUESS_SUBSTEPS = 2  # RK4 steps per interval: the guess only has to be a sensible reference
+SWEEP_DEG = np.arange(-60.0, 61.0, 10.0)
+# miss units of the sweep's score: 5 km, 5 deg, 500 m/s, 5 deg, 5 deg
+MISS_UNIT = np.array([5e3, 5.0, 5.0, 500.0, 5.0, 5.0])
+
+
+@dataclass
+class Reference:
+    """Nodes (K, 7), bank rates (K,) and interval lengths (N,), nondimensional."""
+
+    z: Array
+    w: Array
+    s: Array
+    bank_deg: float
+
+
+def uniform_intervals(final_time: float, nodes: int) -> Array:
+    """N = nodes - 1 equal interval lengths summing to ``final_time``."""
+    return np.full(nodes - 1, final_time / (nodes - 1))
+
+
+def propagate_constant_bank(problem: EntryProblem, banks: Array, s: Array) -> Array:
+    """Nodes (C, K, 7) of propagations under each constant bank in ``banks`` (rad), batched."""
+    c = banks.size
+    z = np.empty((c, s.size + 1, NZ))
+    x = np.tile(np.r_[problem.y0, 0.0], (c, 1))
+    x[:, -1] = banks
+    z[:, 0] = x
+    zero = np.zeros(c)
+    with np.errstate(all="ignore"):
+        for k, sk in enumerate(s):
+            h = sk / GUESS_SUBSTEPS
+            for _ in range(GUESS_SUBSTEPS):
+                k1 = _rate(problem, x, zero)
+                k2 = _rate(problem, x + 0.5 * h * k1, zero)
+                k3 = _rate(problem, x + 0.5 * h * k2, zero)
+                k4 = _rate(problem, x + h * k3, zero)
+                x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                x[x[:, 0] < 1.0] = np.nan  # below ground: this candidate is out
+            z[:, k + 1] = x
+    return z
+
+
+def _rate(problem: EntryProblem, x: Array, w: Array) -> Array:
+    return bank_state_dynamics(x, w, problem.forces, problem.omega, jacobians=False).F
+
+
+def _miss(problem: EntryProblem, end: Array) -> Array:
+    """Scaled distance of end states (C, 7) to the terminal targets; inf when not finite."""
+    sc = problem.scales
+    si = np.column_stack(
+        [
+            (end[:, 0] - 1.0) * sc.radius_m,
+            np.degrees(end[:, 1]),
+            np.degrees(end[:, 2]),
+            end[:, 3] * sc.speed_m_s,
+            np.degrees(end[:, 4]),
+            np.degrees(end[:, 5]),
+        ]
+    )
+    score = np.zeros(end.shape[0])
+    for j, name in enumerate(STATE_NAMES):
+        target = problem.terminal[name].target()
+        if target is None:
+            continue
+        value = (target - 1.0) * sc.radius_m if j == 0 else target
+        if j == 3:
+            value = target * sc.speed_m_s
+        elif j > 0:
+            value = math.degrees(target)
+        score += ((si[:, j] - value) / MISS_UNIT[j]) ** 2
+    return np.where(np.isfinite(score), score, np.inf)
+
+
+def initial_reference(
+    problem: EntryProblem, nodes: int, initial_bank_deg: float | None
+) -> Reference:
+    """The propagated constant-bank reference on a uniform grid (paper 002 sec. 4)."""
+    assert problem.final_time is not None
+    s = uniform_intervals(problem.final_time, nodes)
+    fixed_bank = problem.document.initial_state.bank_deg
+    if initial_bank_deg is not None:
+        candidates = np.array([initial_bank_deg])
+    elif fixed_bank is not None:
+        candidates = np.array([fixed_bank])
+    else:
+        limit = math.degrees(problem.bank_max)
+        candidates = SWEEP_DEG[np.abs(SWEEP_DEG) <= limit]
+    z = propagate_constant_bank(problem, np.radians(candidates), s)
+    score = _miss(problem, z[:, -1])
+    best = int(np.argmin(score))
+    if not np.isfinite(score[best]):
+        raise ValueError(
+            "no constant-bank propagation stays above the ground for the whole flight time; "
+            "give method.initial_bank_deg"
+        )
+    return Reference(z=z[best], w=np.zeros(nodes), s=s, bank_deg=float(candidates[best]))
