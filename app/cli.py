@@ -1,4 +1,5 @@
-"""The ``trajopt`` command: list scenarios, solve in-process, run the API or a worker."""
+"""The ``trajopt`` command: list scenarios, solve in-process, run the API or a worker, and manage
+API keys."""
 
 from __future__ import annotations
 
@@ -31,6 +32,15 @@ def _build_parser() -> argparse.ArgumentParser:
 
     worker = sub.add_parser("worker", help="run a Celery worker against the configured broker")
     worker.add_argument("--concurrency", type=int, default=None, help="worker processes")
+
+    keys = sub.add_parser("keys", help="manage API keys (api-keys mode)")
+    keys_sub = keys.add_subparsers(dest="keys_command", required=True)
+    create = keys_sub.add_parser("create", help="create a key for a client and print it once")
+    create.add_argument("--client", required=True, help="client name owning the key's jobs")
+    listing = keys_sub.add_parser("list", help="list keys (never the keys themselves)")
+    listing.add_argument("--client", default=None, help="only this client's keys")
+    revoke = keys_sub.add_parser("revoke", help="revoke a key by its id (or a unique id prefix)")
+    revoke.add_argument("key_id", help="the id shown by `trajopt keys list`")
     return parser
 
 
@@ -51,6 +61,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         run_worker(concurrency=args.concurrency)
         return 0
+    if args.command == "keys":
+        from app.keys_cli import run_keys
+
+        return run_keys(args)
     return 2
 
 

@@ -8,12 +8,21 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Request, Security
+from fastapi.security import APIKeyHeader
 
+from app.auth import API_KEY_HEADER, Principal, authenticate
 from app.dispatch import Dispatcher
+from app.errors import ApiError
 from app.settings import Settings
 from app.state import ServiceState
 from app.storage.session import Database
+
+api_key_header = APIKeyHeader(
+    name=API_KEY_HEADER,
+    auto_error=False,
+    description="The client's API key (api-keys mode); created with `trajopt keys create`.",
+)
 
 
 async def get_service(request: Request) -> ServiceState:
@@ -40,12 +49,43 @@ async def get_dispatcher(service: ServiceDep) -> Dispatcher:
     return service.dispatcher
 
 
-async def get_owner(service: ServiceDep) -> str:
-    """The caller's identity; a single default owner until API keys exist."""
-    return service.settings.default_owner
+def get_principal(
+    service: ServiceDep, api_key: Annotated[str | None, Security(api_key_header)] = None
+) -> Principal:
+    """The authenticated caller (a database lookup in api-keys mode, so a sync dependency)."""
+    return authenticate(service.database, service.settings, api_key)
+
+
+PrincipalDep = Annotated[Principal, Depends(get_principal)]
+
+
+def _limit(service: ServiceState, principal: Principal, kind: str, limit: int) -> None:
+    retry_after = service.rate_limiter.hit(
+        f"{kind}:{principal.rate_bucket}", limit, service.settings.rate_window_s
+    )
+    if retry_after is not None:
+        raise ApiError(
+            429,
+            "rate_limited",
+            f"too many {kind} requests: at most {limit} per {service.settings.rate_window_s:g} s",
+            headers={"Retry-After": str(int(retry_after))},
+        )
+
+
+def get_owner(service: ServiceDep, principal: PrincipalDep) -> str:
+    """The caller's client name, after counting one read against its rate limit."""
+    _limit(service, principal, "read", service.settings.rate_read_per_window)
+    return principal.client
+
+
+def get_submitter(service: ServiceDep, principal: PrincipalDep) -> str:
+    """The caller's client name, after counting one submission against its rate limit."""
+    _limit(service, principal, "submit", service.settings.rate_submit_per_window)
+    return principal.client
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings_dep)]
 DatabaseDep = Annotated[Database, Depends(get_database_dep)]
 DispatcherDep = Annotated[Dispatcher, Depends(get_dispatcher)]
 OwnerDep = Annotated[str, Depends(get_owner)]
+SubmitterDep = Annotated[str, Depends(get_submitter)]

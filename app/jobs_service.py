@@ -9,6 +9,7 @@ from typing import Any
 from pydantic import ValidationError
 from sqlalchemy.exc import IntegrityError
 
+from app.caps import check_server_caps
 from app.dispatch import Dispatcher
 from app.errors import ApiError, not_found
 from app.settings import Settings
@@ -22,6 +23,10 @@ from worker.limits import job_time_limits
 log = logging.getLogger(__name__)
 
 MAX_IDEMPOTENCY_KEY_LENGTH = 255
+ACTIVE_CAP_RETRY_AFTER_S = 10
+"""Retry-After of a submission refused because the client has too many active jobs."""
+QUEUE_RETRY_AFTER_S = 5
+"""Retry-After of a submission refused because the queue is unreachable."""
 
 
 def job_location(job_id: str) -> str:
@@ -114,7 +119,18 @@ def submit_job(
                 return job_view(_replay(existing, fingerprint, key), settings), True
 
     submission = resolve_submission(body)
+    check_server_caps(submission.problem, settings)
     check_method_support(submission)
+    with database.reader() as session:
+        active = repository.count_active(session, owner)
+    if active >= settings.max_active_jobs:
+        raise ApiError(
+            429,
+            "too_many_active_jobs",
+            f"client has {active} queued or running jobs; the cap is {settings.max_active_jobs} "
+            "(TRAJOPT_MAX_ACTIVE_JOBS)",
+            headers={"Retry-After": str(ACTIVE_CAP_RETRY_AFTER_S)},
+        )
     new = repository.NewJob(
         owner=owner,
         method=submission.method,
@@ -138,18 +154,24 @@ def submit_job(
     try:
         dispatcher.submit(job.id, job_time_limits(submission.document, settings))
     except Exception as exc:
-        log.exception("job %s could not be queued", job.id)
+        log.warning(
+            "job %s of client %s could not be queued: %s: %s",
+            job.id,
+            owner,
+            type(exc).__name__,
+            exc,
+        )
         with database.session() as session:
-            repository.transition(
-                session,
-                job.id,
-                to=JobStatus.FAILED.value,
-                allowed_from=[JobStatus.QUEUED.value],
-                values={"error_code": "dispatch_failed", "error_message": str(exc)},
-            )
-        raise ApiError(
-            503, "queue_unavailable", "the job was stored but could not be queued"
-        ) from exc
+            withdrawn = repository.withdraw_unclaimed(session, job.id)
+        if withdrawn:  # never accepted: the client retries (same Idempotency-Key is safe)
+            raise ApiError(
+                503,
+                "queue_unavailable",
+                "the queue is unreachable; nothing was stored, retry later",
+                headers={"Retry-After": str(QUEUE_RETRY_AFTER_S)},
+            ) from exc
+        log.info("job %s was picked up despite the error; accepted", job.id)
+    log.info("job %s accepted for client %s (%s)", job.id, owner, job.method)
     return job_view(job, settings), False
 
 

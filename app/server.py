@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import uvicorn
 
+from app.main import auth_banner
 from app.settings import get_settings
 
 
@@ -20,6 +21,7 @@ def run_server(host: str | None = None, port: int | None = None) -> None:
     )
     print(f"trajopt API: http://{shown}:{port}  (docs: http://{shown}:{port}/docs)", flush=True)
     print(f"jobs run on {mode}; database: {_safe_url(settings.effective_database_url)}", flush=True)
+    print(auth_banner(settings), flush=True)
     uvicorn.run("app.main:create_app", factory=True, host=host, port=port, log_level="info")
 
 

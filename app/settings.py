@@ -9,9 +9,31 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
+from urllib.parse import urlsplit
 
 from pydantic import AliasChoices, Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+AuthMode = Literal["single-user", "api-keys"]
+
+MIN_SECRET_LENGTH = 32
+"""Shortest accepted server secret (characters); 32 hex characters carry 128 bits."""
+
+WEAK_SECRETS: frozenset[str] = frozenset(
+    {
+        "",
+        "changeme",
+        "change-me",
+        "changethis",
+        "secret",
+        "password",
+        "postgres",
+        "trajopt",
+        "admin",
+    }
+)
+"""Values refused wherever a secret is required (placeholders and well-known defaults)."""
 
 
 def default_data_dir() -> Path:
@@ -62,11 +84,65 @@ class Settings(BaseSettings):
     event_ping_interval_s: float = Field(default=15.0, gt=0)
     request_timeout_s: float = Field(default=2.0, gt=0)
 
+    auth_mode: AuthMode = Field(
+        default="single-user",
+        description="single-user: every request acts as default_owner; api-keys: X-API-Key.",
+    )
+    api_key_secret: str = Field(
+        default="",
+        description="Server secret keyed into the stored API-key hashes (HMAC-SHA-256); "
+        "required in api-keys mode.",
+    )
+    cors_origins: str = Field(
+        default="", description="Comma-separated browser origins allowed by CORS; empty: none."
+    )
+    max_body_bytes: int = Field(default=1_048_576, ge=1024)
+    rate_window_s: float = Field(default=60.0, gt=0)
+    rate_submit_per_window: int = Field(default=60, ge=0, description="0 disables the limit.")
+    rate_read_per_window: int = Field(default=1200, ge=0, description="0 disables the limit.")
+    max_active_jobs: int = Field(
+        default=100, ge=1, description="Queued + running jobs one client may have."
+    )
+    max_nodes: int = Field(default=1000, ge=3)
+    max_iterations: int = Field(default=500, ge=1)
+    max_no_fly_zones: int = Field(default=20, ge=0)
+    max_waypoints: int = Field(default=20, ge=0)
+
+    lease_s: float = Field(
+        default=30.0, gt=0, description="A running job whose heartbeat is older is re-queued."
+    )
+    sweep_interval_s: float = Field(default=5.0, gt=0)
+    requeue_queued_after_s: float = Field(
+        default=900.0,
+        ge=0,
+        description="Re-send a job still queued after this long (lost message); 0 disables.",
+    )
+
     @model_validator(mode="after")
     def _default_time_limit_within_cap(self) -> Settings:
         if self.default_time_limit_s > self.max_time_limit_s:
             self.default_time_limit_s = self.max_time_limit_s
         return self
+
+    @model_validator(mode="after")
+    def _refuse_default_secrets(self) -> Settings:
+        if self.auth_mode != "api-keys":
+            return self
+        secret = self.api_key_secret
+        if secret.strip().lower() in WEAK_SECRETS or len(secret) < MIN_SECRET_LENGTH:
+            raise ValueError(
+                "TRAJOPT_API_KEY_SECRET must be set to a random value of at least "
+                f"{MIN_SECRET_LENGTH} characters in api-keys mode (e.g. `openssl rand -hex 32`)"
+            )
+        password = urlsplit(self.database_url).password if "://" in self.database_url else None
+        if password is not None and password.lower() in WEAK_SECRETS:
+            raise ValueError("DATABASE_URL uses a default password; set a random one")
+        return self
+
+    @property
+    def cors_origin_list(self) -> list[str]:
+        """The configured CORS origins (empty: CORS closed)."""
+        return [o.strip() for o in self.cors_origins.split(",") if o.strip()]
 
     @property
     def effective_database_url(self) -> str:

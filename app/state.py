@@ -1,4 +1,5 @@
-"""What the running API holds: settings, database, dispatcher, event waker and metrics registry."""
+"""What the running API holds: settings, database, dispatcher, event waker, metrics registry and
+rate limiter."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from prometheus_client import CollectorRegistry
 
 from app.dispatch import Dispatcher
 from app.events import Waker
+from app.ratelimit import RateLimiter
 from app.settings import Settings
 from app.storage.session import Database
 
@@ -21,3 +23,4 @@ class ServiceState:
     dispatcher: Dispatcher
     waker: Waker
     registry: CollectorRegistry
+    rate_limiter: RateLimiter

@@ -21,6 +21,7 @@ from app.storage import repository
 from app.storage.models import JobStatus
 from app.storage.repository import ClaimState
 from app.storage.session import Database, get_database
+from worker.heartbeat import Heartbeat
 from worker.limits import TimeLimits, job_time_limits
 
 log = logging.getLogger(__name__)
@@ -70,6 +71,8 @@ class _Attempt:
     limits: TimeLimits
     notify: NotifyFn | None
     passthrough: tuple[type[BaseException], ...] = ()
+    lease_s: float = 30.0
+    heartbeat: Heartbeat | None = None
     started: float = field(default_factory=time.monotonic)
     history: list[dict[str, Any]] = field(default_factory=list)
     deadline_hit: bool = False
@@ -92,6 +95,7 @@ class _Attempt:
                     self.attempt,
                     list(self.history),
                     progress_of(clean, self.elapsed()),
+                    self.lease_s,
                 )
             if not owned:
                 self.stop_requested = True
@@ -108,7 +112,8 @@ class _Attempt:
         if self.elapsed() > self.limits.solve_s:
             self.deadline_hit = True
             return True
-        if self.stop_requested:
+        if self.stop_requested or (self.heartbeat is not None and self.heartbeat.lost):
+            self.stop_requested = True
             return True
         try:
             with self.database.reader() as session:
@@ -216,10 +221,10 @@ def execute_job(
     settings = settings or get_settings()
     database = get_database(settings.effective_database_url)
     with database.session() as session:
-        claim = repository.claim_attempt(session, job_id, settings.max_attempts)
+        claim = repository.claim_attempt(session, job_id, settings.max_attempts, settings.lease_s)
     problem_raw = claim.problem
     if claim.state is not ClaimState.CLAIMED or problem_raw is None:
-        log.info("job %s not run: %s", job_id, claim.state.value)
+        log.info("job %s not run: %s (attempts %d)", job_id, claim.state.value, claim.attempt)
         if notify is not None and claim.state in (ClaimState.EXHAUSTED, ClaimState.CANCELLED):
             notify(job_id, "end")
         return claim.state.value
@@ -231,13 +236,22 @@ def execute_job(
         limits=job_time_limits(problem_raw, settings),
         notify=notify,
         passthrough=timeout_exceptions,
+        lease_s=settings.lease_s,
     )
-    outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
+    log.info("job %s: attempt %d started", job_id, claim.attempt)
+    attempt.heartbeat = Heartbeat(database, job_id, claim.attempt, settings.lease_s)
+    attempt.heartbeat.start()
     try:
-        stored = _finish(attempt, outcome)
-    except timeout_exceptions:  # a soft limit fires once: the second write is not interrupted
-        stored = _finish(attempt, outcome)
-    if not stored:
+        outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
+        try:
+            stored = _finish(attempt, outcome)
+        except timeout_exceptions:  # a soft limit fires once: the second write is not interrupted
+            stored = _finish(attempt, outcome)
+    finally:
+        attempt.heartbeat.stop()
+    if stored:
+        log.info("job %s: attempt %d stored outcome %s", job_id, attempt.attempt, outcome.status)
+    else:
         log.warning("job %s: attempt %d no longer owns the job", job_id, attempt.attempt)
     if notify is not None:
         notify(job_id, "end")

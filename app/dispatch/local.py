@@ -76,10 +76,18 @@ class LocalDispatcher:
         self.resubmit_unfinished()
 
     def resubmit_unfinished(self) -> None:
-        """Hand every stored queued or running job to the pool again."""
+        """Hand every stored queued or running job to the pool again.
+
+        Called at start-up and after the pool broke, when no process of this pool runs any job:
+        running jobs are orphans, so they are put back to ``queued`` at once instead of waiting
+        for their lease to lapse.
+        """
         database = get_database(self._settings.effective_database_url)
         with database.session() as session:
+            released = repository.release_running(session)
             job_ids = repository.active_job_ids(session)
+        if released:
+            log.info("%d interrupted job(s) put back in the queue", released)
         for job_id in job_ids:
             log.info("re-dispatching unfinished job %s", job_id)
             self.submit(job_id, TimeLimits(0, 0, 0))

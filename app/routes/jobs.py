@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Header, Query, Response
 
 from app import jobs_service
-from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep
+from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep, SubmitterDep
 from app.routes.examples import PROBLEM_EXAMPLES
 from app.views import ErrorResponse, HistoryView, JobPage, JobStatusName, JobView
 
@@ -23,8 +23,16 @@ _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorResponse}}
     summary="Submit a job",
     responses={
         202: {"description": "Stored and queued; poll the Location."},
-        422: {"model": ErrorResponse, "description": "Every invalid field, listed."},
-        503: {"model": ErrorResponse, "description": "The queue is unreachable."},
+        413: {"model": ErrorResponse, "description": "The body is over the size limit."},
+        422: {"model": ErrorResponse, "description": "Every invalid field, or a server cap."},
+        429: {
+            "model": ErrorResponse,
+            "description": "Rate limit, or too many queued and running jobs; see Retry-After.",
+        },
+        503: {
+            "model": ErrorResponse,
+            "description": "The queue is unreachable; nothing was stored, retry after Retry-After.",
+        },
     },
     openapi_extra={"x-problem-body": True},
 )
@@ -34,7 +42,7 @@ def submit_job(
     database: DatabaseDep,
     dispatcher: DispatcherDep,
     settings: SettingsDep,
-    owner: OwnerDep,
+    owner: SubmitterDep,
     idempotency_key: Annotated[
         str | None,
         Header(
@@ -67,7 +75,7 @@ def list_jobs(
         list[JobStatusName] | None, Query(description="Only these statuses (repeatable).")
     ] = None,
     limit: Annotated[int, Query(ge=1, le=100)] = 20,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=1_000_000_000)] = 0,
 ) -> JobPage:
     """The caller's jobs, newest first, optionally filtered by status."""
     statuses = [str(s) for s in status] if status else None

@@ -6,6 +6,8 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body
 
+from app.caps import check_server_caps
+from app.deps import SettingsDep
 from app.routes.examples import VALIDATE_EXAMPLES
 from app.submission import check_method_support, resolve_submission
 from app.views import ErrorResponse, ValidationReport
@@ -22,8 +24,10 @@ router = APIRouter(prefix="/v1/problems", tags=["problems"])
 )
 def validate_problem(
     body: Annotated[dict[str, Any], Body(openapi_examples=VALIDATE_EXAMPLES)],
+    settings: SettingsDep,
 ) -> ValidationReport:
     """All errors at once (422), or the normalized document with defaults filled in (200)."""
     submission = resolve_submission(body)
+    check_server_caps(submission.problem, settings)
     check_method_support(submission)
     return ValidationReport(problem=submission.document)

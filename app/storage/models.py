@@ -1,4 +1,5 @@
-"""The ``jobs`` table: one row per submitted problem with status, progress, history and result."""
+"""The ``jobs`` table (one row per submitted problem with status, progress, history and result)
+and the ``api_keys`` table (hashed client keys)."""
 
 from __future__ import annotations
 
@@ -82,6 +83,7 @@ class Job(Base):
         ),
         Index("ix_jobs_owner_created", "owner", "created_at"),
         Index("ix_jobs_status", "status"),
+        Index("ix_jobs_status_lease", "status", "lease_expires_at"),
     )
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True)
@@ -104,3 +106,18 @@ class Job(Base):
     history: Mapped[list[dict[str, Any]]] = mapped_column(JsonType, nullable=False, default=list)
     result: Mapped[dict[str, Any] | None] = mapped_column(JsonType, nullable=True)
     solve_s: Mapped[float | None] = mapped_column(Float, nullable=True)
+    lease_expires_at: Mapped[datetime | None] = mapped_column(UtcDateTime, nullable=True)
+    """Heartbeat of the running attempt: past this instant its worker is presumed gone."""
+
+
+class ApiKey(Base):
+    """A client's API key, stored only as a keyed hash; revoked keys stay for the record."""
+
+    __tablename__ = "api_keys"
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True)
+    client: Mapped[str] = mapped_column(String(128), nullable=False, index=True)
+    key_hash: Mapped[str] = mapped_column(String(64), nullable=False, unique=True)
+    prefix: Mapped[str] = mapped_column(String(16), nullable=False)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime, nullable=False, default=utcnow)
+    revoked_at: Mapped[datetime | None] = mapped_column(UtcDateTime, nullable=True)

@@ -10,13 +10,14 @@ from __future__ import annotations
 import uuid
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime, timedelta
 from enum import StrEnum
 from typing import Any
 
-from sqlalchemy import Text, case, cast, func, select, update
+from sqlalchemy import Text, and_, case, cast, delete, func, or_, select, update
 from sqlalchemy.orm import Session
 
-from app.storage.models import ACTIVE_STATUSES, Job, JobStatus, utcnow
+from app.storage.models import ACTIVE_STATUSES, ApiKey, Job, JobStatus, utcnow
 
 _NO_SYNC = {"synchronize_session": False}
 
@@ -129,6 +130,7 @@ def transition(
     fields: dict[str, Any] = {"status": to, "updated_at": now, **(values or {})}
     if to not in ACTIVE_STATUSES:
         fields.setdefault("finished_at", now)
+        fields.setdefault("lease_expires_at", None)
     stmt = update(Job).where(Job.id == job_id, Job.status.in_(list(allowed_from)))
     if attempt is not None:
         stmt = stmt.where(Job.attempts == attempt)
@@ -141,6 +143,7 @@ class ClaimState(StrEnum):
 
     CLAIMED = "claimed"
     MISSING = "missing"
+    BUSY = "busy"
     FINISHED = "finished"
     EXHAUSTED = "exhausted"
     CANCELLED = "cancelled"
@@ -155,19 +158,31 @@ class Claim:
     problem: dict[str, Any] | None = field(default=None, compare=False)
 
 
-def claim_attempt(session: Session, job_id: str, max_attempts: int) -> Claim:
+def _claimable(now: datetime) -> Any:
+    """Queued, or running with a lapsed (or never set) lease: its worker is gone."""
+    return or_(
+        Job.status == JobStatus.QUEUED.value,
+        and_(
+            Job.status == JobStatus.RUNNING.value,
+            or_(Job.lease_expires_at.is_(None), Job.lease_expires_at < now),
+        ),
+    )
+
+
+def claim_attempt(session: Session, job_id: str, max_attempts: int, lease_s: float = 30.0) -> Claim:
     """Atomically count one more attempt and mark the job ``running``, unless it must not run.
 
-    A delivery of a finished job does nothing; one beyond ``max_attempts`` ends the job as
-    ``failed``/``worker_lost``; one of a running job whose cancel was requested ends it as
-    ``cancelled`` (its previous worker died before it could).
+    A delivery of a finished job does nothing, and neither does one of a job whose running
+    attempt still renews its lease (a duplicate delivery: ``BUSY``). One beyond
+    ``max_attempts`` ends the job as ``failed``/``worker_lost``; one of a running job whose
+    cancel was requested ends it as ``cancelled`` (its previous worker died before it could).
     """
     now = utcnow()
     stmt = (
         update(Job)
         .where(
             Job.id == job_id,
-            Job.status.in_([JobStatus.QUEUED.value, JobStatus.RUNNING.value]),
+            _claimable(now),
             Job.attempts < max_attempts,
             Job.cancel_requested.is_(False),
         )
@@ -176,6 +191,7 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int) -> Claim:
             attempts=Job.attempts + 1,
             started_at=now,
             updated_at=now,
+            lease_expires_at=now + timedelta(seconds=lease_s),
             progress=None,
             history=[],
         )
@@ -186,13 +202,17 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int) -> Claim:
     if claimed is not None:
         return Claim(ClaimState.CLAIMED, int(claimed[0]), claimed[1])
     job = session.execute(
-        select(Job.status, Job.attempts, Job.cancel_requested).where(Job.id == job_id)
+        select(Job.status, Job.attempts, Job.cancel_requested, Job.lease_expires_at).where(
+            Job.id == job_id
+        )
     ).one_or_none()
     if job is None:
         return Claim(ClaimState.MISSING)
-    status, attempts, cancel_requested = job
+    status, attempts, cancel_requested, lease = job
     if status not in ACTIVE_STATUSES:
         return Claim(ClaimState.FINISHED, int(attempts))
+    if status == JobStatus.RUNNING.value and lease is not None and lease >= now:
+        return Claim(ClaimState.BUSY, int(attempts))
     if cancel_requested:
         transition(
             session,
@@ -223,12 +243,199 @@ def record_iteration(
     attempt: int,
     history: list[dict[str, Any]],
     progress: dict[str, Any],
+    lease_s: float = 30.0,
 ) -> bool:
-    """Store the history so far and the live progress of a running attempt; False if not ours."""
+    """Store the history so far and the live progress of a running attempt, renewing its
+    lease; False if the attempt no longer owns the job."""
+    now = utcnow()
     stmt = (
         update(Job)
         .where(Job.id == job_id, Job.status == JobStatus.RUNNING.value, Job.attempts == attempt)
-        .values(history=history, progress=progress, updated_at=utcnow())
+        .values(
+            history=history,
+            progress=progress,
+            updated_at=now,
+            lease_expires_at=now + timedelta(seconds=lease_s),
+        )
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def renew_lease(session: Session, job_id: str, attempt: int, lease_s: float) -> bool:
+    """Heartbeat: push the running attempt's lease ``lease_s`` ahead; False if not ours."""
+    stmt = (
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.RUNNING.value, Job.attempts == attempt)
+        .values(lease_expires_at=utcnow() + timedelta(seconds=lease_s))
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+@dataclass(frozen=True)
+class LapsedJob:
+    """A running job whose lease lapsed: its worker stopped renewing it."""
+
+    id: str
+    attempts: int
+    started_at: datetime | None
+    problem: dict[str, Any]
+    cancel_requested: bool
+
+
+def lapsed_running_jobs(session: Session, now: datetime, limit: int = 100) -> list[LapsedJob]:
+    """Running jobs whose lease expired before ``now``, oldest lease first."""
+    rows = session.execute(
+        select(Job.id, Job.attempts, Job.started_at, Job.problem, Job.cancel_requested)
+        .where(Job.status == JobStatus.RUNNING.value, Job.lease_expires_at < now)
+        .order_by(Job.lease_expires_at)
+        .limit(limit)
+    ).all()
+    return [LapsedJob(r[0], int(r[1]), r[2], r[3], bool(r[4])) for r in rows]
+
+
+def requeue_lapsed(session: Session, job_id: str, attempt: int, now: datetime) -> bool:
+    """Put a running job with a lapsed lease back to ``queued`` (only if nothing changed)."""
+    stmt = (
+        update(Job)
+        .where(
+            Job.id == job_id,
+            Job.status == JobStatus.RUNNING.value,
+            Job.attempts == attempt,
+            Job.lease_expires_at < now,
+        )
+        .values(status=JobStatus.QUEUED.value, lease_expires_at=None, updated_at=now)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def finish_lapsed(
+    session: Session, job_id: str, attempt: int, now: datetime, to: str, code: str, message: str
+) -> bool:
+    """End a running job with a lapsed lease as ``to`` (history kept), if nothing changed."""
+    stmt = (
+        update(Job)
+        .where(
+            Job.id == job_id,
+            Job.status == JobStatus.RUNNING.value,
+            Job.attempts == attempt,
+            Job.lease_expires_at < now,
+        )
+        .values(
+            status=to,
+            lease_expires_at=None,
+            updated_at=now,
+            finished_at=now,
+            error_code=code,
+            error_message=message,
+        )
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def claim_stale_queued(
+    session: Session, now: datetime, older_than_s: float, limit: int = 100
+) -> list[str]:
+    """Queued jobs untouched for ``older_than_s``; their ``updated_at`` is bumped so only one
+    sweeper re-sends each (the queue message may have been lost with a broker)."""
+    cutoff = now - timedelta(seconds=older_than_s)
+    ids = list(
+        session.execute(
+            select(Job.id)
+            .where(Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff)
+            .order_by(Job.updated_at)
+            .limit(limit)
+        ).scalars()
+    )
+    claimed: list[str] = []
+    for job_id in ids:
+        stmt = (
+            update(Job)
+            .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff)
+            .values(updated_at=now)
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            claimed.append(job_id)
+    return claimed
+
+
+def release_running(session: Session) -> int:
+    """Put every running job back to ``queued`` (its workers are known to be gone); returns how
+    many. Only for a process that owns every worker of its database (the embedded pool)."""
+    stmt = (
+        update(Job)
+        .where(Job.status == JobStatus.RUNNING.value)
+        .values(status=JobStatus.QUEUED.value, lease_expires_at=None, updated_at=utcnow())
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt))
+
+
+def count_active(session: Session, owner: str) -> int:
+    """Number of the owner's queued and running jobs."""
+    stmt = (
+        select(func.count())
+        .select_from(Job)
+        .where(Job.owner == owner, Job.status.in_(list(ACTIVE_STATUSES)))
+    )
+    return int(session.execute(stmt).scalar_one())
+
+
+def withdraw_unclaimed(session: Session, job_id: str) -> bool:
+    """Delete a job no worker has started (its submission failed); False if one has."""
+    stmt = (
+        delete(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value, Job.attempts == 0)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def add_api_key(session: Session, client: str, key_hash: str, prefix: str) -> ApiKey:
+    """Store a new key's hash for ``client``."""
+    key = ApiKey(
+        id=str(uuid.uuid4()),
+        client=client,
+        key_hash=key_hash,
+        prefix=prefix,
+        created_at=utcnow(),
+        revoked_at=None,
+    )
+    session.add(key)
+    session.flush()
+    return key
+
+
+def find_api_key(session: Session, key_hash: str) -> ApiKey | None:
+    """The key stored with ``key_hash``, revoked or not."""
+    return session.execute(select(ApiKey).where(ApiKey.key_hash == key_hash)).scalar_one_or_none()
+
+
+def list_api_keys(session: Session, client: str | None = None) -> list[ApiKey]:
+    """Every key (of ``client`` if given), oldest first."""
+    stmt = select(ApiKey).order_by(ApiKey.created_at, ApiKey.id)
+    if client is not None:
+        stmt = stmt.where(ApiKey.client == client)
+    return list(session.execute(stmt).scalars())
+
+
+def revoke_api_key(session: Session, key_id: str) -> bool:
+    """Revoke the key ``key_id`` (id or unique id prefix); False if no active key matched."""
+    matches = list(
+        session.execute(
+            select(ApiKey.id).where(ApiKey.id.startswith(key_id), ApiKey.revoked_at.is_(None))
+        ).scalars()
+    )
+    if len(matches) != 1:
+        return False
+    stmt = (
+        update(ApiKey)
+        .where(ApiKey.id == matches[0], ApiKey.revoked_at.is_(None))
+        .values(revoked_at=utcnow())
         .execution_options(**_NO_SYNC)
     )
     return _rowcount(session.execute(stmt)) == 1

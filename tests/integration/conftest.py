@@ -21,9 +21,13 @@ from tests.integration.harness import (
     ApiServer,
     ServiceClient,
     ServiceProcess,
+    create_api_key,
     forget_queue,
     require,
 )
+
+TEST_SECRET = "it-only-5b1f0c7e9a2d4e6f8a0b2c4d6e8f0a1b"
+"""Server secret of the test deployments (api-keys mode refuses a missing or default one)."""
 
 SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 
@@ -114,8 +118,20 @@ def stack_env(
         TRAJOPT_QUEUE_NAME=f"trajopt-it-{uuid.uuid4().hex[:10]}",
         TRAJOPT_DATA_DIR=str(tmp_path_factory.mktemp("data")),
         TRAJOPT_WORKER_MAX_TASKS_PER_CHILD="50",
+        TRAJOPT_AUTH_MODE="api-keys",
+        TRAJOPT_API_KEY_SECRET=TEST_SECRET,
+        TRAJOPT_LEASE_S="3",
+        TRAJOPT_SWEEP_INTERVAL_S="0.5",
+        TRAJOPT_RATE_READ_PER_WINDOW="0",
+        TRAJOPT_RATE_SUBMIT_PER_WINDOW="0",
     )
     return env
+
+
+@pytest.fixture(scope="session")
+def api_key(stack_env: dict[str, str]) -> str:
+    """A key of client ``it`` made with the management command (which also migrates)."""
+    return create_api_key(stack_env, "it")
 
 
 @pytest.fixture(scope="session")
@@ -136,10 +152,13 @@ def worker(
 
 @pytest.fixture(scope="session")
 def api(
-    stack_env: dict[str, str], worker: ServiceProcess, tmp_path_factory: pytest.TempPathFactory
+    stack_env: dict[str, str],
+    worker: ServiceProcess,
+    api_key: str,
+    tmp_path_factory: pytest.TempPathFactory,
 ) -> Iterator[ApiServer]:
-    """The API server of this run (tests may restart it)."""
-    server = ApiServer(stack_env, tmp_path_factory.mktemp("logs") / "api.log")
+    """The API server of this run (tests may restart it), in api-keys mode."""
+    server = ApiServer(stack_env, tmp_path_factory.mktemp("logs") / "api.log", api_key)
     server.start_and_wait()
     try:
         yield server

@@ -135,9 +135,10 @@ class ServiceProcess:
 class ApiServer(ServiceProcess):
     """``trajopt serve`` on a free loopback port."""
 
-    def __init__(self, env: dict[str, str], log_path: Path) -> None:
+    def __init__(self, env: dict[str, str], log_path: Path, api_key: str | None = None) -> None:
         self.port = free_port()
         self.base_url = f"http://127.0.0.1:{self.port}"
+        self.api_key = api_key
         args = ["-m", "app.cli", "serve", "--host", "127.0.0.1", "--port", str(self.port)]
         super().__init__(args, env, log_path)
 
@@ -158,16 +159,45 @@ class ApiServer(ServiceProcess):
         pytest.fail(f"the API did not become ready:\n{self.log_text()[-4000:]}")
 
     def client(self) -> ServiceClient:
-        """An HTTP client of this server."""
-        return ServiceClient(self.base_url)
+        """An HTTP client of this server (sending this server's API key, if any)."""
+        return ServiceClient(self.base_url, self.api_key)
+
+
+def create_api_key(env: dict[str, str], client: str) -> str:
+    """Run ``trajopt keys create --client`` with ``env`` and return the printed key."""
+    out = subprocess.run(
+        [sys.executable, "-m", "app.cli", "keys", "create", "--client", client],
+        cwd=REPO_ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
+    return out.stdout.strip()
+
+
+def run_keys_command(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    """Run ``trajopt keys ARGS`` with ``env``."""
+    return subprocess.run(
+        [sys.executable, "-m", "app.cli", "keys", *args],
+        cwd=REPO_ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=120,
+    )
 
 
 class ServiceClient:
     """Thin HTTP client of the job API used by the tests."""
 
-    def __init__(self, base_url: str) -> None:
+    def __init__(self, base_url: str, api_key: str | None = None) -> None:
         self.base_url = base_url
-        self.http = httpx.Client(base_url=base_url, timeout=30.0)
+        self.api_key = api_key
+        headers = {"X-API-Key": api_key} if api_key else {}
+        self.http = httpx.Client(base_url=base_url, timeout=30.0, headers=headers)
 
     def submit(self, body: dict[str, Any], key: str | None = None) -> dict[str, Any]:
         """POST a job; asserts 202 and the Location header."""

@@ -116,3 +116,13 @@ def test_images_are_built_from_the_project(compose: dict[str, Any]) -> None:
     assert re.search(r"pip install \.", dockerfile)
     assert 'ENTRYPOINT ["trajopt"]' in dockerfile
     assert re.search(r"^USER (?!root)", dockerfile, re.MULTILINE)
+
+
+def test_the_deployment_requires_api_keys_and_a_secret(compose: dict[str, Any]) -> None:
+    for name in ("api", "worker"):
+        env = _services(compose)[name]["environment"]
+        assert env["TRAJOPT_AUTH_MODE"] == "api-keys"
+        assert env["TRAJOPT_API_KEY_SECRET"].startswith("${TRAJOPT_API_KEY_SECRET:?")
+        assert env["TRAJOPT_CORS_ORIGINS"] == "${TRAJOPT_CORS_ORIGINS:-}"  # closed by default
+    text = (DOCKER / "compose.yml").read_text()
+    assert not re.search(r"SECRET[^:\n]*:-", text), "a secret has a default value"

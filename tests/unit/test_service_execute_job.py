@@ -225,8 +225,9 @@ def test_a_job_whose_workers_keep_dying_ends_worker_lost(
 ) -> None:
     job_id = _submit(database)
     for _ in range(settings.max_attempts):  # each delivery claims, then its process "dies"
-        with database.session() as s:
-            assert repository.claim_attempt(s, job_id, settings.max_attempts).attempt > 0
+        with database.session() as s:  # lease 0 s: the dead worker's lease has lapsed at once
+            claim = repository.claim_attempt(s, job_id, settings.max_attempts, lease_s=0.0)
+            assert claim.attempt > 0
     assert execute_job(job_id, settings=settings, solve=scripted(1)) == "exhausted"
     job = _job(database, job_id)
     assert (job.status, job.error_code) == ("failed", "worker_lost")

@@ -64,8 +64,8 @@ def test_create_and_owner_scoping(database: Database) -> None:
 def test_attempts_are_counted_and_exhausted_jobs_fail_as_worker_lost(database: Database) -> None:
     job_id = _new(database)
     for expected in (1, 2, 3):
-        with database.session() as s:
-            claim = repository.claim_attempt(s, job_id, max_attempts=3)
+        with database.session() as s:  # lease 0 s: each worker is gone before the next delivery
+            claim = repository.claim_attempt(s, job_id, max_attempts=3, lease_s=0.0)
         assert claim == repository.Claim(ClaimState.CLAIMED, expected)
         assert _status(database, job_id) == "running"
     with database.session() as s:
@@ -105,7 +105,7 @@ def test_duplicate_delivery_of_a_finished_job_changes_nothing(database: Database
 def test_a_stale_attempt_cannot_write(database: Database) -> None:
     job_id = _new(database)
     with database.session() as s:
-        first = repository.claim_attempt(s, job_id, 3).attempt
+        first = repository.claim_attempt(s, job_id, 3, lease_s=0.0).attempt  # its worker dies
     with database.session() as s:
         second = repository.claim_attempt(s, job_id, 3).attempt  # redelivered elsewhere
     with database.session() as s:
@@ -173,7 +173,7 @@ def test_cancel_queued_running_and_finished(database: Database) -> None:
 def test_redelivery_of_a_cancel_requested_running_job_ends_it(database: Database) -> None:
     job_id = _new(database)
     with database.session() as s:
-        repository.claim_attempt(s, job_id, 3)
+        repository.claim_attempt(s, job_id, 3, lease_s=0.0)
         repository.request_cancel(s, job_id, "alice")
     with database.session() as s:  # the worker died before it saw the flag
         assert repository.claim_attempt(s, job_id, 3).state is ClaimState.CANCELLED

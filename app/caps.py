@@ -1,0 +1,81 @@
+"""Server caps on what one job may ask for: nodes, iterations, time limit, zones, waypoints.
+
+They sit below the contract's own maxima (``app.schemas.limits``) and are set by the operator;
+a problem over a cap is a 422 whose issue names the cap and its setting.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from app.errors import ApiError
+from app.schemas import FieldIssue, ProblemDocument
+from app.settings import Settings
+
+
+def _over(field: str, value: Any, cap: float, setting: str) -> FieldIssue:
+    return FieldIssue(
+        field=field,
+        message=f"{value} exceeds the server cap {setting}={cap:g}",
+        code="server_cap",
+    )
+
+
+def cap_issues(problem: ProblemDocument, settings: Settings) -> list[FieldIssue]:
+    """Every field of ``problem`` over a server cap (empty when all are within)."""
+    issues: list[FieldIssue] = []
+    method = problem.method
+    checks: list[tuple[str, Any, float, str]] = [
+        ("method.nodes", getattr(method, "nodes", None), settings.max_nodes, "TRAJOPT_MAX_NODES"),
+        (
+            "method.max_iterations",
+            getattr(method, "max_iterations", None),
+            settings.max_iterations,
+            "TRAJOPT_MAX_ITERATIONS",
+        ),
+        (
+            "method.time_limit_s",
+            getattr(method, "time_limit_s", None),
+            settings.max_time_limit_s,
+            "TRAJOPT_MAX_TIME_LIMIT_S",
+        ),
+    ]
+    for field, value, cap, setting in checks:
+        if isinstance(value, int | float) and value > cap:
+            issues.append(_over(field, value, cap, setting))
+    zones = len(problem.no_fly_zones)
+    if zones > settings.max_no_fly_zones:
+        issues.append(
+            _over(
+                "no_fly_zones",
+                f"{zones} zones",
+                settings.max_no_fly_zones,
+                "TRAJOPT_MAX_NO_FLY_ZONES",
+            )
+        )
+    waypoints = len(problem.waypoints)
+    if waypoints > settings.max_waypoints:
+        issues.append(
+            _over(
+                "waypoints",
+                f"{waypoints} waypoints",
+                settings.max_waypoints,
+                "TRAJOPT_MAX_WAYPOINTS",
+            )
+        )
+    return issues
+
+
+def check_server_caps(problem: ProblemDocument, settings: Settings) -> None:
+    """422 ``over_server_cap`` listing every field over a server cap."""
+    issues = cap_issues(problem, settings)
+    if not issues:
+        return
+    first = issues[0]
+    raise ApiError(
+        422,
+        "over_server_cap",
+        f"the problem exceeds {len(issues)} server cap(s); first: {first.field}: {first.message}",
+        field=first.field,
+        issues=[i.model_dump() for i in issues],
+    )

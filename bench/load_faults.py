@@ -1,0 +1,297 @@
+"""Load with a fault: 200 small jobs from 4 concurrent clients while one of 2 workers is killed.
+
+Starts its own API (api-keys mode, one key per client), two Celery workers and a throwaway
+PostgreSQL schema and Redis queue. Each client submits its share of the jobs and then polls the
+status of every job it owns until all are terminal, timing each status read. Once a few jobs
+have finished, worker 1 is killed with SIGKILL (its whole process group) and restarted. At the
+end the database must hold every accepted job in a terminal state, and the worker logs must show
+exactly one stored outcome per job finished by a worker (no duplicate solve reached storage).
+
+    python -m bench.load_faults                       # 200 jobs, 4 clients, 2 workers
+    python -m bench.load_faults --jobs 40 --output load.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import httpx
+
+from bench.service_overhead import ROOT, TERMINAL, _free_port, _Process
+
+SECRET = "bench-only-8c1d4f2a6b3e9d7c5a1f0e2d4c6b8a9f"
+STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
+
+
+def _percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    index = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
+    return ordered[index]
+
+
+class Client(threading.Thread):
+    """One API client: submits its jobs, then polls each until terminal, timing the reads."""
+
+    def __init__(self, base_url: str, key: str, jobs: int, body: dict[str, Any]) -> None:
+        super().__init__(daemon=True)
+        self.http = httpx.Client(base_url=base_url, timeout=60, headers={"X-API-Key": key})
+        self.jobs, self.body = jobs, body
+        self.ids: list[str] = []
+        self.read_s: list[float] = []
+        self.submit_s: list[float] = []
+        self.refused: dict[int, int] = {}
+        self.final: dict[str, str] = {}
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            self._run()
+        except BaseException as exc:  # reported by the main thread
+            self.error = exc
+
+    def _run(self) -> None:
+        while len(self.ids) < self.jobs:
+            start = time.perf_counter()
+            response = self.http.post("/v1/jobs", json=self.body)
+            self.submit_s.append(time.perf_counter() - start)
+            if response.status_code == 202:
+                self.ids.append(response.json()["id"])
+            else:  # 429/503 are allowed answers under load: wait as told and retry
+                self.refused[response.status_code] = self.refused.get(response.status_code, 0) + 1
+                time.sleep(float(response.headers.get("retry-after", "1")))
+        pending = list(self.ids)
+        while pending:
+            still: list[str] = []
+            for job_id in pending:
+                start = time.perf_counter()
+                response = self.http.get(f"/v1/jobs/{job_id}")
+                self.read_s.append(time.perf_counter() - start)
+                response.raise_for_status()
+                status = response.json()["status"]
+                if status in TERMINAL:
+                    self.final[job_id] = status
+                else:
+                    still.append(job_id)
+            pending = still
+            time.sleep(0.2)
+        self.http.close()
+
+
+def _env(args: argparse.Namespace, logs: Path) -> tuple[dict[str, str], str]:
+    import psycopg
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("TRAJOPT_")}
+    for name in ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL"):
+        env.pop(name, None)
+    schema = f"trajopt_load_{uuid.uuid4().hex[:10]}"
+    with psycopg.connect(args.postgres_url, autocommit=True) as conn:
+        conn.execute(f'CREATE SCHEMA "{schema}"')
+    sep = "&" if "?" in args.postgres_url else "?"
+    env.update(
+        DATABASE_URL=f"{args.postgres_url}{sep}options={quote(f'-csearch_path={schema}')}",
+        REDIS_URL=args.redis_url,
+        TRAJOPT_QUEUE_NAME=f"trajopt-load-{uuid.uuid4().hex[:10]}",
+        TRAJOPT_DATA_DIR=str(logs),
+        TRAJOPT_AUTH_MODE="api-keys",
+        TRAJOPT_API_KEY_SECRET=SECRET,
+        TRAJOPT_RATE_SUBMIT_PER_WINDOW="0",
+        TRAJOPT_RATE_READ_PER_WINDOW="0",
+        TRAJOPT_MAX_ACTIVE_JOBS=str(args.jobs),
+        TRAJOPT_LEASE_S=str(args.lease_s),
+        TRAJOPT_SWEEP_INTERVAL_S="1",
+    )
+    return env, schema
+
+
+def _create_key(env: dict[str, str], client: str) -> str:
+    out = subprocess.run(
+        [sys.executable, "-m", "app.cli", "keys", "create", "--client", client],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return out.stdout.strip()
+
+
+def _check_database(env: dict[str, str], ids: list[str]) -> dict[str, Any]:
+    import psycopg
+
+    with psycopg.connect(env["DATABASE_URL"]) as conn:
+        rows = conn.execute(
+            "SELECT id, status, attempts, result IS NOT NULL, error_code FROM jobs",
+        ).fetchall()
+    by_id = {r[0]: r for r in rows}
+    statuses: dict[str, int] = {}
+    attempts: dict[int, int] = {}
+    errors: dict[str, int] = {}
+    for job_id in ids:
+        row = by_id[job_id]
+        statuses[row[1]] = statuses.get(row[1], 0) + 1
+        attempts[row[2]] = attempts.get(row[2], 0) + 1
+        errors[str(row[4])] = errors.get(str(row[4]), 0) + 1
+    return {
+        "rows": len(rows),
+        "statuses": statuses,
+        "error_codes": errors,
+        "attempts": attempts,
+        "succeeded_without_result": sum(1 for r in rows if r[1] == "succeeded" and not r[3]),
+        "not_terminal": [r[0] for r in rows if r[1] not in TERMINAL],
+        "worker_lost": [r[0] for r in rows if r[4] == "worker_lost"],
+    }
+
+
+def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
+    """Run the scenario once and return the figures."""
+    env, schema = _env(args, logs)
+    processes: list[_Process] = []
+    method = {"nodes": args.nodes, "max_iterations": args.max_iterations}
+    body = {"scenario": args.scenario, "method": method}
+    try:
+        keys = [_create_key(env, f"client-{i}") for i in range(args.clients)]
+        port = _free_port()
+        api = _Process(["serve", "--host", "127.0.0.1", "--port", str(port)], env,
+                       logs / "api.log")  # fmt: skip
+        processes.append(api)
+        api.wait_for("Application startup complete", 90)
+        workers = []
+        for index in range(2):
+            worker = _Process(["worker", "--concurrency", "1"], env, logs / f"worker-{index}.log")
+            processes.append(worker)
+            worker.wait_for(" ready.", 90)
+            workers.append(worker)
+        base_url = f"http://127.0.0.1:{port}"
+        share = [args.jobs // args.clients + (i < args.jobs % args.clients)
+                 for i in range(args.clients)]  # fmt: skip
+        clients = [Client(base_url, k, n, body) for k, n in zip(keys, share, strict=True)]
+        start = time.perf_counter()
+        for c in clients:
+            c.start()
+        killed_at = restarted_at = None
+        while any(c.is_alive() for c in clients):
+            done = sum(len(c.final) for c in clients)
+            if killed_at is None and done >= args.kill_after:
+                os.killpg(workers[0].proc.pid, signal.SIGKILL)  # main process and pool child
+                workers[0].proc.wait()
+                killed_at = time.perf_counter() - start
+                time.sleep(args.restart_after_s)
+                replacement = _Process(["worker", "--concurrency", "1"], env,
+                                       logs / "worker-0-restarted.log")  # fmt: skip
+                processes.append(replacement)
+                replacement.wait_for(" ready.", 90)
+                restarted_at = time.perf_counter() - start
+            time.sleep(0.2)
+        wall = time.perf_counter() - start
+        for c in clients:
+            if c.error is not None:
+                raise RuntimeError(f"a client failed: {c.error!r}")
+        ids = [job_id for c in clients for job_id in c.ids]
+        database = _check_database(env, ids)
+        worker_logs = "\n".join(p.log.read_text(errors="replace") for p in processes[1:])
+        stored: dict[str, int] = {}
+        for match in STORED_RE.finditer(worker_logs):
+            stored[match.group(1)] = stored.get(match.group(1), 0) + 1
+        reads = [s for c in clients for s in c.read_s]
+        submits = [s for c in clients for s in c.submit_s]
+        lost = set(database["worker_lost"])
+        return {
+            "job": body,
+            "clients": args.clients,
+            "accepted": len(ids),
+            "distinct_ids": len(set(ids)),
+            "terminal_by_client_view": sum(len(c.final) for c in clients),
+            "database": {k: v for k, v in database.items() if k != "worker_lost"},
+            "worker_lost": len(lost),
+            "stored_outcomes_max_per_job": max(stored.values()) if stored else 0,
+            "jobs_stored_once": sum(1 for j in ids if stored.get(j) == 1),
+            "jobs_stored_twice_or_more": sum(1 for j in ids if stored.get(j, 0) > 1),
+            "jobs_without_stored_outcome": sorted(j for j in ids if j not in stored),
+            "refused_submissions": {
+                str(k): sum(c.refused.get(k, 0) for c in clients) for k in (429, 503)
+            },
+            "worker_killed_at_s": killed_at,
+            "worker_restarted_at_s": restarted_at,
+            "wall_s": wall,
+            "status_reads": len(reads),
+            "status_read_p50_ms": 1e3 * statistics.median(reads),
+            "status_read_p95_ms": 1e3 * _percentile(reads, 0.95),
+            "status_read_max_ms": 1e3 * max(reads),
+            "submit_p95_ms": 1e3 * _percentile(submits, 0.95),
+        }
+    finally:
+        for process in reversed(processes):
+            process.stop()
+        _cleanup(args, env, schema)
+
+
+def _cleanup(args: argparse.Namespace, env: dict[str, str], schema: str) -> None:
+    import psycopg
+    import redis
+
+    with psycopg.connect(args.postgres_url, autocommit=True) as conn:
+        conn.execute(f'DROP SCHEMA IF EXISTS "{schema}" CASCADE')
+    queue = env["TRAJOPT_QUEUE_NAME"]
+    client = redis.Redis.from_url(args.redis_url)
+    client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+    for key in client.scan_iter(f"trajopt:rate:{queue}:*"):
+        client.delete(key)
+    client.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the load test, print the figures, and exit 1 if any guarantee was broken."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--jobs", type=int, default=200)
+    parser.add_argument("--clients", type=int, default=4)
+    parser.add_argument("--scenario", default="rlv-min-heat-load")
+    parser.add_argument("--nodes", type=int, default=41)
+    parser.add_argument("--max-iterations", type=int, default=8)
+    parser.add_argument("--kill-after", type=int, default=20,
+                        help="kill worker 1 once this many jobs are terminal")  # fmt: skip
+    parser.add_argument("--restart-after-s", type=float, default=3.0)
+    parser.add_argument("--lease-s", type=float, default=10.0)
+    parser.add_argument(
+        "--postgres-url",
+        default=os.environ.get("BENCH_POSTGRES_URL", "postgresql://postgres@127.0.0.1:5432/test"),
+    )
+    parser.add_argument(
+        "--redis-url", default=os.environ.get("BENCH_REDIS_URL", "redis://127.0.0.1:6379/12")
+    )
+    parser.add_argument("--output", type=Path, help="also write the figures as JSON")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="trajopt-load-") as tmp:
+        report = run(args, Path(tmp))
+    print(json.dumps(report, indent=2))
+    if args.output:
+        args.output.write_text(json.dumps(report, indent=2) + "\n")
+    db = report["database"]
+    ok = (
+        report["accepted"] == args.jobs == report["distinct_ids"]
+        and db["rows"] == args.jobs
+        and not db["not_terminal"]
+        and report["jobs_stored_twice_or_more"] == 0
+        and db["succeeded_without_result"] == 0
+    )
+    print("PASS" if ok else "FAIL", f"- {report['accepted']} accepted, "
+          f"{sum(db['statuses'].values())} terminal {db['statuses']}, "
+          f"p95 status read {report['status_read_p95_ms']:.1f} ms")  # fmt: skip
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
