@@ -41,6 +41,8 @@ class ConicSolution:
     iterations: int
     setup_time_s: float
     solver: str
+    clarabel_setup_s: float = 0.0
+    """Time inside Clarabel's own constructor or ``update()`` (its setup work) for this solve."""
 
 
 @runtime_checkable

@@ -383,6 +383,7 @@ def run_energy_scp(
             conic_solver=sol.solver,
             conic_solve_s=sol.solve_time_s,
             conic_setup_s=sol.setup_time_s,
+            conic_solver_setup_s=sol.clarabel_setup_s,
             iteration_wall_s=time.perf_counter() - it_start,
         )
         history.append(record)

@@ -25,6 +25,7 @@ class IterationRecord:
     conic_solve_s: float
     conic_setup_s: float
     iteration_wall_s: float
+    conic_solver_setup_s: float = 0.0  # inside the solver's own setup/data update (Clarabel)
     subproblem_cost: float | None = None  # the conic subproblem's objective (normalized units)
     extra: dict[str, Any] = field(default_factory=dict)
 
