@@ -33,28 +33,9 @@ class EnergyStopTolerance(StrictModel):
     heading_deg: float = Field(1.0, gt=0, description="Heading change tolerance, deg.")
 
 
-class EnergyScpOptions(StrictModel):
-    """Energy-domain sequential convex programming with post-correction (Jung et al.).
+class ScpRunOptions(StrictModel):
+    """Options every SCP method shares: iteration and time budgets, the conic solver."""
 
-    Energy is the independent variable, path limits become lower bounds on radius; the trust
-    region weight and post-correction step are the paper's (Table 1, sec. 4). Soft terminal
-    weights come from the terminal conditions themselves. Departures from the paper, with
-    their reasons, are listed in docs/methods/energy-scp.md.
-    """
-
-    name: Literal["energy-scp"] = Field("energy-scp", description="Method name.")
-    nodes: int = Field(
-        121,
-        ge=3,
-        le=MAX_NODES,
-        description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}.",
-    )
-    grid: Literal["time_adaptive", "uniform"] = Field(
-        "time_adaptive",
-        description='Node placement in energy: "uniform" as in the paper, or "time_adaptive": '
-        "start from a glide-time estimate and re-space the nodes evenly in flight time after "
-        "the second iteration, so the terminal maneuver is resolved.",
-    )
     max_iterations: int = Field(
         30, ge=1, le=MAX_ITERATIONS, description=f"Most SCP iterations, 1..{MAX_ITERATIONS}."
     )
@@ -78,6 +59,30 @@ class EnergyScpOptions(StrictModel):
         gt=0,
         le=MAX_TIME_LIMIT_S,
         description="Wall-clock limit of each convex subproblem, s; none = only the overall limit.",
+    )
+
+
+class EnergyScpOptions(ScpRunOptions):
+    """Energy-domain sequential convex programming with post-correction (Jung et al.).
+
+    Energy is the independent variable, path limits become lower bounds on radius; the trust
+    region weight and post-correction step are the paper's (Table 1, sec. 4). Soft terminal
+    weights come from the terminal conditions themselves. Departures from the paper, with
+    their reasons, are listed in docs/methods/energy-scp.md.
+    """
+
+    name: Literal["energy-scp"] = Field("energy-scp", description="Method name.")
+    nodes: int = Field(
+        121,
+        ge=3,
+        le=MAX_NODES,
+        description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}.",
+    )
+    grid: Literal["time_adaptive", "uniform"] = Field(
+        "time_adaptive",
+        description='Node placement in energy: "uniform" as in the paper, or "time_adaptive": '
+        "start from a glide-time estimate and re-space the nodes evenly in flight time after "
+        "the second iteration, so the terminal maneuver is resolved.",
     )
     stop_tolerance: EnergyStopTolerance = Field(
         default_factory=EnergyStopTolerance,
@@ -141,7 +146,7 @@ class FohStopTolerance(StrictModel):
     )
 
 
-class FohPtrOptions(StrictModel):
+class FohPtrOptions(ScpRunOptions):
     """Time-domain SCP with exact first-order-hold discretization and an adaptive time grid
     (Ma, Chen, Wang & Zhang 2023, paper 002): bank angle as a state, bank rate as the control,
     penalized trust region (PTR). Departures from the paper are listed in docs/methods/foh-ptr.md.
@@ -166,30 +171,6 @@ class FohPtrOptions(StrictModel):
         description='"exact_foh": inverse-free exact FOH maps stitched to the propagated '
         'reference (paper 002 Theorem 1, eq. 24); "trapezoid": the trapezoidal rule (for '
         "comparison; needs many more nodes).",
-    )
-    max_iterations: int = Field(
-        30, ge=1, le=MAX_ITERATIONS, description=f"Most SCP iterations, 1..{MAX_ITERATIONS}."
-    )
-    time_limit_s: float = Field(
-        120.0,
-        gt=0,
-        le=MAX_TIME_LIMIT_S,
-        description=f"Wall-clock limit of the whole solve, s, in (0, {MAX_TIME_LIMIT_S:g}].",
-    )
-    conic_backend: Literal["clarabel", "cvxpy"] = Field(
-        "clarabel",
-        description='Convex solver interface: "clarabel" directly, or through cvxpy.',
-    )
-    fallback_solver: Literal["ECOS", "SCS"] | None = Field(
-        None,
-        description="cvxpy solver tried when the primary one fails on a subproblem; none = no "
-        "fallback.",
-    )
-    conic_time_limit_s: float | None = Field(
-        None,
-        gt=0,
-        le=MAX_TIME_LIMIT_S,
-        description="Wall-clock limit of each convex subproblem, s; none = only the overall limit.",
     )
     foh_substeps: int = Field(
         8,
