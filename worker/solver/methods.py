@@ -57,18 +57,9 @@ ENERGY_SCP_OBJECTIVES = (
 )
 
 
-def _check_energy_scp(doc: ProblemDocument) -> list[FieldIssue]:
-    """Features the energy-domain method of paper 000 cannot express, and energy consistency."""
-    name = "energy-scp"
-    out: list[FieldIssue] = []
-    if doc.final_time.kind == "fixed":
-        out.append(
-            _issue(
-                "final_time",
-                f"{name} cannot fix the final time: energy is its "
-                "independent variable and time is an outcome; leave final_time free",
-            )
-        )
+def _scheduled_alpha_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
+    """Refusals shared by methods that fly a scheduled angle of attack with CL(alpha), CD(alpha)."""
+    out = []
     if doc.vehicle.angle_of_attack.mode == "optimized":
         out.append(
             _issue(
@@ -85,18 +76,34 @@ def _check_energy_scp(doc: ProblemDocument) -> list[FieldIssue]:
                 "of attack (polynomial or table), not a normalized-lift polar",
             )
         )
-    if doc.control_limits.bank_rate_max_deg_s is not None:
-        out.append(
-            _issue(
-                "control_limits.bank_rate_max_deg_s",
-                f"{name} has bank angle as a control, not a state, so it cannot limit its rate",
-            )
-        )
     if doc.control_limits.alpha_rate_max_deg_s is not None:
         out.append(
             _issue(
                 "control_limits.alpha_rate_max_deg_s",
                 f"{name} does not optimize the angle of attack",
+            )
+        )
+    return out
+
+
+def _check_energy_scp(doc: ProblemDocument) -> list[FieldIssue]:
+    """Features the energy-domain method of paper 000 cannot express, and energy consistency."""
+    name = "energy-scp"
+    out: list[FieldIssue] = []
+    if doc.final_time.kind == "fixed":
+        out.append(
+            _issue(
+                "final_time",
+                f"{name} cannot fix the final time: energy is its "
+                "independent variable and time is an outcome; leave final_time free",
+            )
+        )
+    out.extend(_scheduled_alpha_issues(doc, name))
+    if doc.control_limits.bank_rate_max_deg_s is not None:
+        out.append(
+            _issue(
+                "control_limits.bank_rate_max_deg_s",
+                f"{name} has bank angle as a control, not a state, so it cannot limit its rate",
             )
         )
     if doc.no_fly_zones:
@@ -232,29 +239,7 @@ def _check_foh_ptr(doc: ProblemDocument) -> list[FieldIssue]:
                 'summing to it); give final_time {"kind": "fixed", "value_s": ...}',
             )
         )
-    if doc.vehicle.angle_of_attack.mode == "optimized":
-        out.append(
-            _issue(
-                "vehicle.angle_of_attack",
-                f"{name} flies a scheduled angle of attack; "
-                "give a velocity_schedule, table or constant",
-            )
-        )
-    if doc.vehicle.aerodynamics.model == "parabolic_polar":
-        out.append(
-            _issue(
-                "vehicle.aerodynamics",
-                f"{name} needs CL and CD as functions of angle "
-                "of attack (polynomial or table), not a normalized-lift polar",
-            )
-        )
-    if doc.control_limits.alpha_rate_max_deg_s is not None:
-        out.append(
-            _issue(
-                "control_limits.alpha_rate_max_deg_s",
-                f"{name} does not optimize the angle of attack",
-            )
-        )
+    out.extend(_scheduled_alpha_issues(doc, name))
     if doc.waypoints:
         out.append(_issue("waypoints", f"{name} does not handle waypoints yet"))
     if doc.energy is not None:
