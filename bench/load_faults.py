@@ -32,6 +32,7 @@ from urllib.parse import quote
 import httpx
 
 from bench.service_overhead import ROOT, TERMINAL, _free_port, _Process
+from bench.stack_args import add_stack_arguments
 
 SECRET = "bench-only-8c1d4f2a6b3e9d7c5a1f0e2d4c6b8a9f"
 STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
@@ -265,14 +266,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="kill worker 1 once this many jobs are terminal")  # fmt: skip
     parser.add_argument("--restart-after-s", type=float, default=3.0)
     parser.add_argument("--lease-s", type=float, default=10.0)
-    parser.add_argument(
-        "--postgres-url",
-        default=os.environ.get("BENCH_POSTGRES_URL", "postgresql://postgres@127.0.0.1:5432/test"),
-    )
-    parser.add_argument(
-        "--redis-url", default=os.environ.get("BENCH_REDIS_URL", "redis://127.0.0.1:6379/12")
-    )
-    parser.add_argument("--output", type=Path, help="also write the figures as JSON")
+    add_stack_arguments(parser, redis_db=12)
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="trajopt-load-") as tmp:
         report = run(args, Path(tmp))

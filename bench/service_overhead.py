@@ -34,6 +34,8 @@ from urllib.parse import quote
 
 import httpx
 
+from bench.stack_args import add_stack_arguments
+
 ROOT = Path(__file__).resolve().parents[1]
 TERMINAL = {"succeeded", "failed", "cancelled", "timed_out"}
 
@@ -228,14 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scenario", default="rlv-min-heat-load")
     parser.add_argument("--nodes", type=int, default=20)
     parser.add_argument("--max-iterations", type=int, default=5)
-    parser.add_argument(
-        "--postgres-url",
-        default=os.environ.get("BENCH_POSTGRES_URL", "postgresql://postgres@127.0.0.1:5432/test"),
-    )
-    parser.add_argument(
-        "--redis-url", default=os.environ.get("BENCH_REDIS_URL", "redis://127.0.0.1:6379/13")
-    )
-    parser.add_argument("--output", type=Path, help="also write the figures as JSON")
+    add_stack_arguments(parser, redis_db=13)
     args = parser.parse_args(argv)
     if args.jobs < 20:
         parser.error("--jobs must be at least 20 for a 95th percentile")

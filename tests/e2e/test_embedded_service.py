@@ -36,19 +36,12 @@ def server(data_dir: Path) -> Iterator[ApiServer]:
         if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
     }
     env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
-    server = ApiServer(env, data_dir / "serve.log")
-    server.start_and_wait()
-    try:
-        yield server
-    finally:
-        server.stop()
+    yield from ApiServer(env, data_dir / "serve.log").serving()
 
 
 @pytest.fixture
 def client(server: ApiServer) -> Iterator[ServiceClient]:
-    client = server.client()
-    yield client
-    client.close()
+    yield from server.serving_client()
 
 
 @pytest.fixture(scope="module")

@@ -158,20 +158,13 @@ def api(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> Iterator[ApiServer]:
     """The API server of this run (tests may restart it), in api-keys mode."""
-    server = ApiServer(stack_env, tmp_path_factory.mktemp("logs") / "api.log", api_key)
-    server.start_and_wait()
-    try:
-        yield server
-    finally:
-        server.stop()
+    yield from ApiServer(stack_env, tmp_path_factory.mktemp("logs") / "api.log", api_key).serving()
 
 
 @pytest.fixture
 def client(api: ApiServer) -> Iterator[ServiceClient]:
     """An HTTP client of the running API."""
-    client = api.client()
-    yield client
-    client.close()
+    yield from api.serving_client()
 
 
 @pytest.fixture(scope="session")

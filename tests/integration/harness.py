@@ -162,6 +162,22 @@ class ApiServer(ServiceProcess):
         """An HTTP client of this server (sending this server's API key, if any)."""
         return ServiceClient(self.base_url, self.api_key)
 
+    def serving(self) -> Iterator[ApiServer]:
+        """Fixture body: start, wait until ready, yield this server, stop it afterwards."""
+        self.start_and_wait()
+        try:
+            yield self
+        finally:
+            self.stop()
+
+    def serving_client(self) -> Iterator[ServiceClient]:
+        """Fixture body: yield a client of this server and close it afterwards."""
+        client = self.client()
+        try:
+            yield client
+        finally:
+            client.close()
+
 
 def create_api_key(env: dict[str, str], client: str) -> str:
     """Run ``trajopt keys create --client`` with ``env`` and return the printed key."""

@@ -172,19 +172,14 @@ def fault_api(
     fault_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[ApiServer]:
     key = create_api_key(fault_env, "faults")
-    server = ApiServer(fault_env, tmp_path_factory.mktemp("fault-logs") / "api.log", key)
-    server.start_and_wait()
-    try:
-        yield server
-    finally:
-        server.stop()
+    yield from ApiServer(
+        fault_env, tmp_path_factory.mktemp("fault-logs") / "api.log", key
+    ).serving()
 
 
 @pytest.fixture
 def fault_client(fault_api: ApiServer) -> Iterator[ServiceClient]:
-    client = fault_api.client()
-    yield client
-    client.close()
+    yield from fault_api.serving_client()
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +26,7 @@ from worker.solver.dynamics import (
     energy_rates,
     time_state_from_energy,
 )
+from worker.solver.method_result import MethodStatus as ScpStatus
 from worker.solver.objectives import (
     RUNNING_COSTS,
     TERMINAL_COSTS,
@@ -47,7 +48,6 @@ from worker.solver.transcription.energy_trapezoid import (
 from worker.solver.verification import OptimizedTrajectory
 
 Array = np.ndarray
-ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed_out"]
 
 # Scale of each energy-form state [r, theta, phi, gamma, psi]: the unit of the scaled deviation
 # in the subproblem and so of the trust region (6.4 km in radius, 1 deg in the angles, 0.5 deg

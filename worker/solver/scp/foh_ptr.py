@@ -13,7 +13,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -21,7 +21,8 @@ from worker.solver.conic import ConicBackend, ConicStatus, make_backend
 from worker.solver.constraints.log_path import active_limits, log_path_rows
 from worker.solver.constraints.no_fly import central_angle, penalty_window
 from worker.solver.dynamics_bank_state import NZ
-from worker.solver.problem import EntryProblem
+from worker.solver.method_result import MethodStatus as ScpStatus
+from worker.solver.problem import STATE_NAMES, EntryProblem
 from worker.solver.scp.foh_objective import TimeObjective
 from worker.solver.scp.history import IterationRecord
 from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
@@ -36,16 +37,8 @@ from worker.solver.transcription.time_trapezoid import trapezoid_maps
 from worker.solver.verification import OptimizedTrajectory
 
 Array = np.ndarray
-ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed_out"]
 
-STATE_KEYS = (
-    "altitude_m",
-    "longitude_deg",
-    "latitude_deg",
-    "velocity_m_s",
-    "flight_path_angle_deg",
-    "heading_deg",
-)
+STATE_KEYS = STATE_NAMES  # the terminal conditions, in time-form state order
 
 
 def state_scale(problem: EntryProblem) -> Array:

@@ -17,6 +17,7 @@ dynamics dz_{k+1} = Phi_k dz_k + B-_k dw_k + B+_k dw_{k+1} + S_k ds_k + (x_prop_
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +44,22 @@ class IntervalMaps:
     S: Array  # (N, 7)
     x_prop: Array  # (N, 7): end of interval k propagated from the reference node k
     E: Array | None = None  # (N, 7, 7); None means the identity
+
+
+def _rk4_unit_interval(
+    rhs: Callable[[float, np.ndarray], np.ndarray], y: np.ndarray, substeps: int
+) -> np.ndarray:
+    """Classical RK4 over tau in [0, 1] with ``substeps`` equal steps (all intervals at once)."""
+    h = 1.0 / substeps
+    tau = 0.0
+    for _ in range(substeps):
+        k1 = rhs(tau, y)
+        k2 = rhs(tau + 0.5 * h, y + (0.5 * h) * k1)
+        k3 = rhs(tau + 0.5 * h, y + (0.5 * h) * k2)
+        k4 = rhs(tau + h, y + h * k3)
+        y = y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        tau += h
+    return y
 
 
 def foh_exact(
@@ -76,15 +93,7 @@ def foh_exact(
         out[:, :, NZ + 3] += d.S
         return out
 
-    h = 1.0 / substeps
-    tau = 0.0
-    for _ in range(substeps):
-        k1 = rhs(tau, state)
-        k2 = rhs(tau + 0.5 * h, state + (0.5 * h) * k1)
-        k3 = rhs(tau + 0.5 * h, state + (0.5 * h) * k2)
-        k4 = rhs(tau + h, state + h * k3)
-        state = state + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        tau += h
+    state = _rk4_unit_interval(rhs, state, substeps)
     return IntervalMaps(
         Phi=state[:, :, 1 : NZ + 1].copy(),
         Bm=state[:, :, NZ + 1].copy(),
@@ -114,16 +123,7 @@ def propagate_nodes(
             x, (1.0 - tau) * w0 + tau * w1, forces, omega, s, jacobians=False
         ).F
 
-    h = 1.0 / substeps
-    tau = 0.0
-    for _ in range(substeps):
-        k1 = rhs(tau, x)
-        k2 = rhs(tau + 0.5 * h, x + (0.5 * h) * k1)
-        k3 = rhs(tau + 0.5 * h, x + (0.5 * h) * k2)
-        k4 = rhs(tau + h, x + h * k3)
-        x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        tau += h
-    return x
+    return _rk4_unit_interval(rhs, x, substeps)
 
 
 def chain_propagate(
