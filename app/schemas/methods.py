@@ -160,11 +160,9 @@ class FohPtrOptions(ScpRunOptions):
         description=f"Temporal nodes (N + 1 for N intervals), 3..{MAX_NODES}.",
     )
     grid: Literal["adaptive", "uniform"] = Field(
-        "uniform",
+        "adaptive",
         description='"adaptive": interval lengths are decision variables (time dilation, paper '
-        '002 sec. 3.1); "uniform": fixed equal intervals. Uniform is the default until the '
-        "adaptive grid keeps the heat-rate peak within its limit between nodes (see "
-        "docs/methods/foh-ptr.md).",
+        '002 sec. 3.1, the paper\'s method); "uniform": fixed equal intervals.',
     )
     discretization: Literal["exact_foh", "trapezoid"] = Field(
         "exact_foh",
@@ -178,6 +176,12 @@ class FohPtrOptions(ScpRunOptions):
         le=200,
         description="Fixed RK4 steps per interval of the exact FOH integration (all intervals "
         "at once).",
+    )
+    intersample_constraints: bool = Field(
+        True,
+        description="Also impose the linearized path limits and no-fly zones between the nodes, at "
+        "each interval's worst interior substep of the exact FOH integration (exact_foh only). "
+        "The paper imposes them at the nodes only; see docs/methods/foh-ptr.md.",
     )
     interval_min_s: float = Field(
         10.0, gt=0, description="Shortest interval of the adaptive grid (Delta_min), s."

@@ -65,23 +65,32 @@ def test_time_dilation_holds_in_every_subproblem(adaptive: dict[str, Any]) -> No
         assert h["extra"]["max_interval_change_s"] <= 50.0 + 1e-6  # DeltaT_max
 
 
-def test_uniform_grid_is_feasible_between_nodes(uniform: dict[str, Any]) -> None:
-    ver = uniform["verification"]
-    for entry in ver["path_maxima"].values():
-        assert entry["ratio"] <= 1.01  # limits respected between nodes within 1 %
-    assert ver["feasible"]
+def test_both_grids_are_feasible_between_nodes(
+    adaptive: dict[str, Any], uniform: dict[str, Any]
+) -> None:
+    """Acceptance: heat rate, dynamic pressure and load factor within 1 % of their limits
+    everywhere between nodes (the verification samples 20 points per interval of the DOP853
+    propagation of the optimized bank)."""
+    for result in (adaptive, uniform):
+        ver = result["verification"]
+        for entry in ver["path_maxima"].values():
+            assert entry["ratio"] <= 1.01
+        assert ver["feasible"]
 
 
-@pytest.mark.xfail(strict=True, reason="measured ~941-943 m/s: a poorer local optimum")
-def test_terminal_velocity_matches_reference(uniform: dict[str, Any]) -> None:
-    vf = uniform["objective"]["value"]
+def test_node_only_limits_leave_the_heat_peak_between_nodes() -> None:
+    """Without the between-node rows (the paper's node-only limits) the adaptive grid puts the
+    heat-rate peak between two nodes: the rows, not luck, keep the solution feasible."""
+    result = solve_problem(_doc(grid="adaptive", intersample_constraints=False))
+    assert result["verification"]["path_maxima"]["heat_rate_W_m2"]["ratio"] > 1.05
+
+
+@pytest.mark.xfail(strict=True, reason="measured 939-943 m/s: a poorer local optimum")
+def test_terminal_velocity_matches_reference(
+    adaptive: dict[str, Any], uniform: dict[str, Any]
+) -> None:
+    vf = max(adaptive["objective"]["value"], uniform["objective"]["value"])
     assert abs(vf / REFERENCE_VF_M_S - 1.0) <= 0.003
-
-
-@pytest.mark.xfail(strict=True, reason="adaptive nodes leave the heat peak between nodes")
-def test_adaptive_grid_is_feasible_between_nodes(adaptive: dict[str, Any]) -> None:
-    for entry in adaptive["verification"]["path_maxima"].values():
-        assert entry["ratio"] <= 1.01
 
 
 def test_support_check_refuses_what_it_cannot_do() -> None:
@@ -94,3 +103,12 @@ def test_support_check_refuses_what_it_cannot_do() -> None:
     issues = {i.field for i in check_support(ProblemDocument.model_validate(raw))}
     assert {"final_time", "objective.terms[0].name", "waypoints"} <= issues
     assert check_support(_doc()) == []
+
+
+def test_active_zone_is_respected_between_nodes() -> None:
+    """Acceptance: with a zone on the case-1 path, the propagated trajectory (DOP853, 20 samples
+    per interval) enters it by no more than 0.05 deg of arc."""
+    result = solve_problem(_doc("rlv-max-terminal-velocity-active-nfz"))
+    assert result["status"] == "succeeded", result.get("failure")
+    (zone,) = result["verification"]["no_fly_zones"]
+    assert zone["min_clearance_deg"] >= -0.05

@@ -14,9 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from worker.solver.constraints.between_nodes import rows_at_worst_sample
 from worker.solver.forces import ForceTerms
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
+from worker.solver.transcription.foh_exact import InnerSamples
+from worker.solver.transcription.foh_subproblem import InnerRows
 
 Array = np.ndarray
 
@@ -82,3 +85,18 @@ def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> 
             g_r[:, j] = (ft.lift * ft.lift_r + ft.drag * ft.drag_r) / n2
             g_v[:, j] = (ft.lift * ft.lift_v + ft.drag * ft.drag_v) / n2
     return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v)
+
+
+def inner_path_rows(problem: EntryProblem, samples: InnerSamples) -> InnerRows:
+    """The log path limits between the nodes, linearized at each interval's worst interior sample
+    (``between_nodes.rows_at_worst_sample``). Node rows alone let a sparse grid put a heating
+    peak between two nodes; these close that gap with one row per interval and limit."""
+    n, j = samples.x.shape[:2]
+    r = samples.x[..., 0].ravel()
+    v = samples.x[..., 3].ravel()
+    rows = log_path_rows(problem, r, v, problem.forces.terms(r, v))
+    m = len(rows.names)
+    grad = np.zeros((n * j, m, samples.x.shape[-1]))
+    grad[:, :, 0] = rows.g_r
+    grad[:, :, 3] = rows.g_v
+    return rows_at_worst_sample(rows.g.reshape(n, j, m), grad.reshape(n, j, m, -1), samples)

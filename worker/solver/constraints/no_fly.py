@@ -14,7 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from worker.solver.constraints.between_nodes import rows_at_worst_sample
 from worker.solver.problem import CircleZone
+from worker.solver.transcription.foh_exact import InnerSamples
+from worker.solver.transcription.foh_subproblem import InnerRows
 
 Array = np.ndarray
 
@@ -50,3 +53,22 @@ def penalty_window(clearance: Array, half_width: int) -> Array:
     mask = np.zeros(k, dtype=bool)
     mask[max(0, i - half_width) : min(k, i + half_width + 1)] = True
     return mask
+
+
+def inner_zone_rows(
+    zones: list[CircleZone], samples: InnerSamples, margin: float = 0.0
+) -> InnerRows:
+    """Zone exclusions between the nodes: R + margin - c <= 0 at each interval's interior sample
+    nearest the zone, linearized through the exact FOH maps (``between_nodes``), so a sparse grid
+    cannot step over a zone between two nodes."""
+    n, j, nz = samples.x.shape
+    lat = samples.x[..., 2].ravel()
+    lon = samples.x[..., 1].ravel()
+    g = np.empty((n * j, len(zones)))
+    grad = np.zeros((n * j, len(zones), nz))
+    for i, zone in enumerate(zones):
+        rows = central_angle(lat, lon, zone)
+        g[:, i] = zone.radius + margin - rows.c
+        grad[:, i, 2] = -rows.c_lat
+        grad[:, i, 1] = -rows.c_lon
+    return rows_at_worst_sample(g.reshape(n, j, -1), grad.reshape(n, j, len(zones), nz), samples)

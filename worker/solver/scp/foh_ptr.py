@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
-from worker.solver.constraints.log_path import active_limits, log_path_rows
-from worker.solver.constraints.no_fly import central_angle, penalty_window
+from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
+from worker.solver.constraints.no_fly import central_angle, inner_zone_rows, penalty_window
 from worker.solver.dynamics_bank_state import NZ
 from worker.solver.method_result import MethodStatus as ScpStatus
 from worker.solver.problem import STATE_NAMES, EntryProblem
@@ -29,6 +29,7 @@ from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
 from worker.solver.transcription.foh_subproblem import (
     FohSubproblem,
     GridLimits,
+    InnerRows,
     SubproblemData,
     TerminalRow,
 )
@@ -125,6 +126,17 @@ def _state_change(m: Array, problem: EntryProblem) -> dict[str, float]:
     }
 
 
+def stack_rows(parts: list[InnerRows]) -> InnerRows:
+    """Between-node rows of several kinds side by side (constraint axis)."""
+    return InnerRows(
+        g=np.concatenate([r.g for r in parts], axis=1),
+        c_z=np.concatenate([r.c_z for r in parts], axis=1),
+        c_wm=np.concatenate([r.c_wm for r in parts], axis=1),
+        c_wp=np.concatenate([r.c_wp for r in parts], axis=1),
+        c_s=np.concatenate([r.c_s for r in parts], axis=1),
+    )
+
+
 class _Linearizer:
     """Builds the per-iteration ``SubproblemData`` (maps, path rows, zone rows, costs)."""
 
@@ -144,12 +156,19 @@ class _Linearizer:
         self.objective: TimeObjective | None = None
         self.windows: list[list[int]] = []
         self.zone_clearance: list[float] = []
+        self.inner_on = bool(
+            options.intersample_constraints
+            and options.discretization == "exact_foh"
+            and options.foh_substeps > 1
+            and (self.limits or self.zones)
+        )
+        self.inner_ratio = np.zeros(len(self.limits))
 
     def maps(self, z: Array, w: Array, s: Array) -> IntervalMaps:
         p, o = self.problem, self.options
         if o.discretization == "trapezoid":
             return trapezoid_maps(z, w, s, p.forces, p.omega)
-        return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps)
+        return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, inner=self.inner_on)
 
     def data(self, z: Array, w: Array, s: Array) -> tuple[SubproblemData, Array]:
         """Subproblem data about (z, w, s) and the path-limit ratios at the nodes (K, m)."""
@@ -158,6 +177,16 @@ class _Linearizer:
         mp = self.maps(z, w, s)
         ft = p.forces.terms(z[:, 0], z[:, 3])
         rows = log_path_rows(p, z[:, 0], z[:, 3], ft)
+        inner = None
+        if self.inner_on:
+            assert mp.inner is not None
+            parts = []
+            if self.limits:
+                parts.append(inner_path_rows(p, mp.inner))
+                self.inner_ratio = np.exp(np.max(parts[0].g, axis=0))
+            if self.zones:
+                parts.append(inner_zone_rows(self.zones, mp.inner, self.margin))
+            inner = stack_rows(parts)
         if self.objective is None:
             self.objective = TimeObjective(p, self.scale, z, s)
         grad_z, grad_s = self.objective.gradients(z, s, ft)
@@ -211,8 +240,25 @@ class _Linearizer:
             grad_s=grad_s,
             quad_z=quad,
             quad_center=quad_c,
+            inner=inner,
         )
         return data, rows.ratio
+
+
+@dataclass
+class _Proposal:
+    """A solved subproblem whose step is judged at the next reference, once its defect is known."""
+
+    z: Array
+    w: Array
+    s: Array
+    data: SubproblemData
+    ratio: Array
+    record: IterationRecord
+    small: bool
+    virtual: float
+    cost: float
+    values: dict[str, float]
 
 
 def run_foh_ptr(
@@ -223,7 +269,14 @@ def run_foh_ptr(
     should_stop: Callable[[], bool] | None = None,
     backend: ConicBackend | None = None,
 ) -> FohOutcome:
-    """Run paper 002's SCP on ``problem`` (fixed final time) with the method ``options``."""
+    """Run paper 002's SCP on ``problem`` (fixed final time) with the method ``options``.
+
+    Each iteration solves one subproblem about the current reference; its solution becomes the next
+    reference, whose discretization also gives the step's defect (nodes minus their propagation).
+    The defect adapts the trust weight w_tr (paper 002 keeps it fixed), and convergence is declared
+    only when the step was small, its defect is within the stop tolerance and w_tr is not above its
+    initial value (a step kept small by a heavy trust weight is not a converged one).
+    """
     start = time.perf_counter()
     if problem.final_time is None:
         raise ValueError("foh-ptr needs a fixed final time")
@@ -256,6 +309,7 @@ def run_foh_ptr(
         n_limits=len(lin.limits),
         n_zones=len(problem.no_fly_zones),
         grid=grid,
+        n_inner_rows=len(lin.limits) + len(problem.no_fly_zones) if lin.inner_on else 0,
         weight_trust_region=options.weight_trust_region,
         weight_trust_interval=options.weight_trust_interval,
         weight_buffer=options.weight_virtual_control,
@@ -269,15 +323,55 @@ def run_foh_ptr(
     w_tr = options.weight_trust_region
     values: dict[str, float] = {}
     extra: dict[str, Any] = {"initial_bank_deg": ref.bank_deg}
+    pending: _Proposal | None = None
+    it_start = time.perf_counter()
+    data, ratio = lin.data(z, w, s)
 
     def outcome(status: ScpStatus, code: str | None = None, msg: str | None = None) -> FohOutcome:
         return FohOutcome(status, z, w, s, history, code, msg, conic_total, values, extra)
 
-    for it in range(1, options.max_iterations + 1):
-        it_start = time.perf_counter()
+    def emit(record: IterationRecord) -> None:
+        history.append(record)
+        if on_iteration is not None:
+            on_iteration(record)
+
+    it = 0
+    while True:
+        converged = False
+        if pending is not None:  # judge the last step at its own reference
+            step_defect = np.max(np.abs(data.maps.x_prop - z[1:]), axis=0)
+            scaled = float(np.max(step_defect / scale))
+            if scaled > options.defect_high:
+                w_tr = min(w_tr * options.trust_factor, 1e3)
+            elif scaled < options.defect_low:
+                w_tr = max(w_tr / options.trust_factor, options.weight_trust_region_min)
+            pending.record.extra["step_defect"] = scaled
+            emit(pending.record)
+            values = pending.values
+            settled = prev_cost is not None and abs(pending.cost - prev_cost) <= (
+                options.stop_tolerance.relative_cost * max(abs(pending.cost), 1.0)
+            )
+            prev_cost = pending.cost
+            converged = (
+                pending.small
+                and settled
+                and pending.virtual <= 1e-6
+                and pending.record.extra["weight_trust_region"] <= options.weight_trust_region
+                and bool(np.all(step_defect <= tol_z))
+            )
+            pending = None
+        if converged:
+            return outcome("converged")
+        if it >= options.max_iterations:
+            return outcome(
+                "max_iterations",
+                "max_iterations",
+                f"not converged in {options.max_iterations} iterations",
+            )
+        it += 1
         if should_stop is not None and should_stop():
             return outcome("cancelled", "cancelled", f"cancelled before iteration {it}")
-        remaining = deadline - it_start
+        remaining = deadline - time.perf_counter()
         if remaining <= 0:
             return outcome(
                 "timed_out",
@@ -293,15 +387,9 @@ def run_foh_ptr(
         )
         if sub.w_buf > options.weight_virtual_control:
             sub.set_virtual_factor(1.0)
-        data, ratio = lin.data(z, w, s)
+        sub.w_tr = w_tr
         lin_s = time.perf_counter() - it_start
         defect = float(np.max(np.abs(data.maps.x_prop - z[1:]) / scale[None, :]))
-        if it > 1:  # adapt the trust weight to how well the last step was predicted
-            if defect > options.defect_high:
-                w_tr = min(w_tr * options.trust_factor, 1e3)
-            elif defect < options.defect_low:
-                w_tr = max(w_tr / options.trust_factor, options.weight_trust_region_min)
-            sub.w_tr = w_tr
         limit = (
             remaining
             if options.conic_time_limit_s is None
@@ -325,8 +413,8 @@ def run_foh_ptr(
         change = np.max(np.abs(new.z - z), axis=0)
         change_s = float(np.max(np.abs(new.s - s))) if s.size else 0.0
         assert lin.objective is not None
-        values = lin.objective.values(new.z, new.s)
-        cost = lin.objective.normalized(values)
+        new_values = lin.objective.values(new.z, new.s)
+        cost = lin.objective.normalized(new_values)
         tr_slack = float(np.sum(new.dz**2) + np.sum(new.dw**2))
         nl_pen = float(np.sum(data.quad_z[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
         zone_pen = float(
@@ -344,15 +432,15 @@ def run_foh_ptr(
             iteration=it,
             cost=float(sol.objective if sol.objective is not None else np.nan),
             cost_terms={
-                **{f"objective:{n}": v for n, v in values.items()},
-                "trust_region": options.weight_trust_region * tr_slack,
+                **{f"objective:{n}": v for n, v in new_values.items()},
+                "trust_region": w_tr * tr_slack,
                 "trust_interval": options.weight_trust_interval * float(np.sum(new.ds**2)),
                 "nonlinear_path": nl_pen,
                 "no_fly_zone": zone_pen,
                 "soft_terminal": soft,
                 "virtual_control": options.weight_virtual_control * vc_norm,
             },
-            objective_value=next(iter(values.values())) if len(values) == 1 else None,
+            objective_value=next(iter(new_values.values())) if len(new_values) == 1 else None,
             max_state_change=_state_change(change, problem),
             trust_region_slack=tr_slack,
             virtual_control_norm=vc_norm,
@@ -363,7 +451,7 @@ def run_foh_ptr(
             conic_solver=sol.solver,
             conic_solve_s=sol.solve_time_s,
             conic_setup_s=sol.setup_time_s,
-            iteration_wall_s=time.perf_counter() - it_start,
+            iteration_wall_s=0.0,
             extra={
                 "max_interval_change_s": change_s * sc.time_s,
                 "interval_s_min": float(np.min(new.s) * sc.time_s),
@@ -371,6 +459,11 @@ def run_foh_ptr(
                 "path_ratio_at_nodes": {
                     name: float(np.max(ratio[:, j])) for j, name in enumerate(lin.limits)
                 },
+                "path_ratio_between_nodes": {
+                    name: float(lin.inner_ratio[j]) for j, name in enumerate(lin.limits)
+                }
+                if lin.inner_on and lin.limits
+                else {},
                 "no_fly_zone_clearance_deg": list(lin.zone_clearance),
                 "no_fly_zone_window_nodes": [list(wd) for wd in lin.windows],
                 "discretization_s": lin_s,
@@ -378,19 +471,22 @@ def run_foh_ptr(
                 "node_times_s": t_nodes.tolist(),
             },
         )
-        history.append(record)
-        if on_iteration is not None:
-            on_iteration(record)
-        z, w, s = new.z, new.w, new.s
-        settled = prev_cost is not None and abs(cost - prev_cost) <= (
-            options.stop_tolerance.relative_cost * max(abs(cost), 1.0)
+        pending = _Proposal(
+            z=z,
+            w=w,
+            s=s,
+            data=data,
+            ratio=ratio,
+            record=record,
+            small=bool(np.all(change <= tol_z) and change_s <= tol_s),
+            virtual=vc_norm,
+            cost=cost,
+            values=new_values,
         )
-        prev_cost = cost
-        if np.all(change <= tol_z) and change_s <= tol_s and settled and vc_norm <= 1e-6:
-            return outcome("converged")
-    return outcome(
-        "max_iterations", "max_iterations", f"not converged in {options.max_iterations} iterations"
-    )
+        z, w, s = new.z, new.w, new.s
+        data, ratio = lin.data(z, w, s)  # the next linearization also judges this step
+        record.iteration_wall_s = time.perf_counter() - it_start
+        it_start = time.perf_counter()
 
 
 def to_trajectory(problem: EntryProblem, outcome: FohOutcome) -> OptimizedTrajectory:

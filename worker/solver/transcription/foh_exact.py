@@ -44,21 +44,45 @@ class IntervalMaps:
     S: Array  # (N, 7)
     x_prop: Array  # (N, 7): end of interval k propagated from the reference node k
     E: Array | None = None  # (N, 7, 7); None means the identity
+    inner: InnerSamples | None = None  # states and maps inside the intervals (exact FOH only)
+
+
+@dataclass
+class InnerSamples:
+    """The reference and its deviation maps at the interior substeps tau_j = j / substeps.
+
+    x(tau_j) = x_bar(tau_j) + Phi_j dz_k + B-_j dw_k + B+_j dw_{k+1} + S_j ds_k to first order,
+    so a path limit can be linearized between the nodes with no extra integration.
+    """
+
+    x: Array  # (N, J, 7)
+    Phi: Array  # (N, J, 7, 7)
+    Bm: Array  # (N, J, 7)
+    Bp: Array  # (N, J, 7)
+    S: Array  # (N, J, 7)
 
 
 def _rk4_unit_interval(
-    rhs: Callable[[float, np.ndarray], np.ndarray], y: np.ndarray, substeps: int
+    rhs: Callable[[float, np.ndarray], np.ndarray],
+    y: np.ndarray,
+    substeps: int,
+    keep: list[np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Classical RK4 over tau in [0, 1] with ``substeps`` equal steps (all intervals at once)."""
+    """Classical RK4 over tau in [0, 1] with ``substeps`` equal steps (all intervals at once).
+
+    With ``keep``, the state after every step but the last is appended to it.
+    """
     h = 1.0 / substeps
     tau = 0.0
-    for _ in range(substeps):
+    for step in range(substeps):
         k1 = rhs(tau, y)
         k2 = rhs(tau + 0.5 * h, y + (0.5 * h) * k1)
         k3 = rhs(tau + 0.5 * h, y + (0.5 * h) * k2)
         k4 = rhs(tau + h, y + h * k3)
         y = y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         tau += h
+        if keep is not None and step < substeps - 1:
+            keep.append(y)
     return y
 
 
@@ -69,11 +93,13 @@ def foh_exact(
     forces: VehicleForces,
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
+    inner: bool = False,
 ) -> IntervalMaps:
     """Exact FOH maps about the reference nodes ``z`` (K, 7), bank rates ``w`` (K,), lengths ``s``.
 
     Fixed-step RK4 with ``substeps`` steps in tau on every interval at once (paper 002 Theorem 1
-    and eq. 24); the accuracy for a given substep count is measured in the method's docs.
+    and eq. 24); the accuracy for a given substep count is measured in the method's docs. With
+    ``inner``, the interior substeps are kept as well (``IntervalMaps.inner``).
     """
     n = s.size
     w0, w1 = w[:-1], w[1:]
@@ -93,13 +119,25 @@ def foh_exact(
         out[:, :, NZ + 3] += d.S
         return out
 
-    state = _rk4_unit_interval(rhs, state, substeps)
+    keep: list[Array] | None = [] if inner and substeps > 1 else None
+    state = _rk4_unit_interval(rhs, state, substeps, keep)
+    samples = None
+    if keep:
+        y = np.stack(keep, axis=1)  # (N, J, 7, 11)
+        samples = InnerSamples(
+            x=y[..., 0],
+            Phi=y[..., 1 : NZ + 1],
+            Bm=y[..., NZ + 1],
+            Bp=y[..., NZ + 2],
+            S=y[..., NZ + 3],
+        )
     return IntervalMaps(
         Phi=state[:, :, 1 : NZ + 1].copy(),
         Bm=state[:, :, NZ + 1].copy(),
         Bp=state[:, :, NZ + 2].copy(),
         S=state[:, :, NZ + 3].copy(),
         x_prop=state[:, :, 0].copy(),
+        inner=samples,
     )
 
 

@@ -73,6 +73,23 @@ class SubproblemData:
     grad_s: Array  # (N,)
     quad_z: Array  # (K, 7)
     quad_center: Array  # (K, 7)
+    inner: InnerRows | None = None
+
+
+@dataclass
+class InnerRows:
+    """Constraints linearized at one interior point per interval (path limits, then zones).
+
+    Row (k, m): g + c_z . dz_k + c_wm dw_k + c_wp dw_{k+1} + c_s ds_k <= 0, constraint m at
+    interval k's worst interior sample carried through the exact FOH deviation maps
+    (constraints.between_nodes), in nondimensional units.
+    """
+
+    g: Array  # (N, m)
+    c_z: Array  # (N, m, 7)
+    c_wm: Array  # (N, m)
+    c_wp: Array  # (N, m)
+    c_s: Array  # (N, m)
 
 
 @dataclass
@@ -106,6 +123,7 @@ class FohSubproblem:
         n_limits: int,
         n_zones: int,
         grid: GridLimits | None,
+        n_inner_rows: int = 0,
         weight_trust_region: float,
         weight_trust_interval: float,
         weight_buffer: float = 0.0,
@@ -122,6 +140,7 @@ class FohSubproblem:
         self.bank_rate_max = bank_rate_max
         self.n_limits = n_limits
         self.n_zones = n_zones
+        self.n_inner = n_inner_rows
         self.grid = grid
         self.adaptive = grid is not None
         self.w_tr = weight_trust_region
@@ -135,7 +154,8 @@ class FohSubproblem:
         n += len(self.soft)
         # L1 buffers (virtual control) on the path and zone rows, when weighted
         self.w_buf = weight_buffer
-        self.n_buffer = (n_limits + n_zones) * K if weight_buffer > 0 else 0
+        n_rows_buffered = (n_limits + n_zones) * K + n_inner_rows * N
+        self.n_buffer = n_rows_buffered if weight_buffer > 0 else 0
         self.col_buf = n + np.arange(self.n_buffer)
         n += self.n_buffer
         self.n = n
@@ -219,6 +239,15 @@ class FohSubproblem:
             add(f"zone_lat{zi}", rr, self.col_z[:, PH_], 0.0)
             add(f"zone_lon{zi}", rr, self.col_z[:, TH_], 0.0)
         row += self.n_zones * K
+        self.row_inner = row
+        for m in range(self.n_inner):
+            rr = row + m * N + np.arange(N)
+            add(f"inner_z{m}", rr[:, None] + 0 * self.col_z[:-1], self.col_z[:-1], 0.0)
+            add(f"inner_wm{m}", rr, self.col_w[:-1], 0.0)
+            add(f"inner_wp{m}", rr, self.col_w[1:], 0.0)
+            if self.adaptive:
+                add(f"inner_s{m}", rr, self.col_s, 0.0)
+        row += self.n_inner * N
         if self.n_buffer:
             add(None, self.row_path + np.arange(self.n_buffer), self.col_buf, -1.0)
             self.row_buffer = row
@@ -273,6 +302,15 @@ class FohSubproblem:
         for zi in range(self.n_zones):
             data[self._slots[f"zone_lat{zi}"]] = -d.zone_clat[zi] * Dz[PH_]
             data[self._slots[f"zone_lon{zi}"]] = -d.zone_clon[zi] * Dz[TH_]
+        if self.n_inner:
+            inn = d.inner
+            assert inn is not None
+            for m in range(self.n_inner):
+                data[self._slots[f"inner_z{m}"]] = (inn.c_z[:, m, :] * Dz[None, :]).ravel()
+                data[self._slots[f"inner_wm{m}"]] = inn.c_wm[:, m] * Dw
+                data[self._slots[f"inner_wp{m}"]] = inn.c_wp[:, m] * Dw
+                if self.adaptive:
+                    data[self._slots[f"inner_s{m}"]] = inn.c_s[:, m] * Ds
         A = self.A_asm.matrix(data)
 
         b = np.zeros(self.m)
@@ -297,6 +335,9 @@ class FohSubproblem:
             b[self.row_path : self.row_path + self.n_limits * K] = -d.path_g.T.ravel()
         if self.n_zones:
             b[self.row_zone : self.row_zone + self.n_zones * K] = d.zone_c.ravel()
+        if self.n_inner:
+            assert d.inner is not None
+            b[self.row_inner : self.row_inner + self.n_inner * N] = -d.inner.g.T.ravel()
         if self.adaptive:
             g = self.grid
             assert g is not None
