@@ -35,3 +35,15 @@ def rows_at_worst_sample(g: Array, grad: Array, samples: InnerSamples) -> InnerR
         c_wp=np.einsum("nmi,nmi->nm", gw, samples.Bp[kk, worst]),
         c_s=np.einsum("nmi,nmi->nm", gw, samples.S[kk, worst]),
     )
+
+
+def stack_rows(parts: list[InnerRows]) -> InnerRows:
+    """Between-node rows of several kinds (path limits, zones) side by side on the constraint
+    axis."""
+    return InnerRows(
+        g=np.concatenate([r.g for r in parts], axis=1),
+        c_z=np.concatenate([r.c_z for r in parts], axis=1),
+        c_wm=np.concatenate([r.c_wm for r in parts], axis=1),
+        c_wp=np.concatenate([r.c_wp for r in parts], axis=1),
+        c_s=np.concatenate([r.c_s for r in parts], axis=1),
+    )

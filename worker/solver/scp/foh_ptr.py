@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
+from worker.solver.constraints.between_nodes import stack_rows
 from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
 from worker.solver.constraints.no_fly import central_angle, inner_zone_rows, penalty_window
 from worker.solver.dynamics_bank_state import NZ
@@ -29,7 +30,6 @@ from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
 from worker.solver.transcription.foh_subproblem import (
     FohSubproblem,
     GridLimits,
-    InnerRows,
     SubproblemData,
     TerminalRow,
 )
@@ -124,17 +124,6 @@ def _state_change(m: Array, problem: EntryProblem) -> dict[str, float]:
         "heading_deg": math.degrees(m[5]),
         "bank_deg": math.degrees(m[6]),
     }
-
-
-def stack_rows(parts: list[InnerRows]) -> InnerRows:
-    """Between-node rows of several kinds side by side (constraint axis)."""
-    return InnerRows(
-        g=np.concatenate([r.g for r in parts], axis=1),
-        c_z=np.concatenate([r.c_z for r in parts], axis=1),
-        c_wm=np.concatenate([r.c_wm for r in parts], axis=1),
-        c_wp=np.concatenate([r.c_wp for r in parts], axis=1),
-        c_s=np.concatenate([r.c_s for r in parts], axis=1),
-    )
 
 
 class _Linearizer:
@@ -245,16 +234,19 @@ class _Linearizer:
         return data, rows.ratio
 
 
+def _defect(data: SubproblemData, scale: Array) -> tuple[Array, float]:
+    """How far the reference nodes are from their own propagation: the largest gap per state
+    (nondimensional) and overall in scaled units. It judges the step that made the reference."""
+    by_state = np.max(np.abs(data.maps.x_prop - data.z[1:]), axis=0)
+    return by_state, float(np.max(by_state / scale))
+
+
 @dataclass
 class _Proposal:
     """A solved subproblem whose step is judged at the next reference, once its defect is known."""
 
-    z: Array
-    w: Array
-    s: Array
-    data: SubproblemData
-    ratio: Array
     record: IterationRecord
+    weight_trust_region: float
     small: bool
     virtual: float
     cost: float
@@ -326,6 +318,7 @@ def run_foh_ptr(
     pending: _Proposal | None = None
     it_start = time.perf_counter()
     data, ratio = lin.data(z, w, s)
+    defect_by_state, defect = _defect(data, scale)
 
     def outcome(status: ScpStatus, code: str | None = None, msg: str | None = None) -> FohOutcome:
         return FohOutcome(status, z, w, s, history, code, msg, conic_total, values, extra)
@@ -339,13 +332,11 @@ def run_foh_ptr(
     while True:
         converged = False
         if pending is not None:  # judge the last step at its own reference
-            step_defect = np.max(np.abs(data.maps.x_prop - z[1:]), axis=0)
-            scaled = float(np.max(step_defect / scale))
-            if scaled > options.defect_high:
+            if defect > options.defect_high:
                 w_tr = min(w_tr * options.trust_factor, 1e3)
-            elif scaled < options.defect_low:
+            elif defect < options.defect_low:
                 w_tr = max(w_tr / options.trust_factor, options.weight_trust_region_min)
-            pending.record.extra["step_defect"] = scaled
+            pending.record.extra["step_defect"] = defect
             emit(pending.record)
             values = pending.values
             settled = prev_cost is not None and abs(pending.cost - prev_cost) <= (
@@ -356,8 +347,8 @@ def run_foh_ptr(
                 pending.small
                 and settled
                 and pending.virtual <= 1e-6
-                and pending.record.extra["weight_trust_region"] <= options.weight_trust_region
-                and bool(np.all(step_defect <= tol_z))
+                and pending.weight_trust_region <= options.weight_trust_region
+                and bool(np.all(defect_by_state <= tol_z))
             )
             pending = None
         if converged:
@@ -389,7 +380,6 @@ def run_foh_ptr(
             sub.set_virtual_factor(1.0)
         sub.w_tr = w_tr
         lin_s = time.perf_counter() - it_start
-        defect = float(np.max(np.abs(data.maps.x_prop - z[1:]) / scale[None, :]))
         limit = (
             remaining
             if options.conic_time_limit_s is None
@@ -472,12 +462,8 @@ def run_foh_ptr(
             },
         )
         pending = _Proposal(
-            z=z,
-            w=w,
-            s=s,
-            data=data,
-            ratio=ratio,
             record=record,
+            weight_trust_region=w_tr,
             small=bool(np.all(change <= tol_z) and change_s <= tol_s),
             virtual=vc_norm,
             cost=cost,
@@ -485,6 +471,7 @@ def run_foh_ptr(
         )
         z, w, s = new.z, new.w, new.s
         data, ratio = lin.data(z, w, s)  # the next linearization also judges this step
+        defect_by_state, defect = _defect(data, scale)
         record.iteration_wall_s = time.perf_counter() - it_start
         it_start = time.perf_counter()
 
