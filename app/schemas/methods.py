@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Final, Literal
 
-from pydantic import BeforeValidator, Field
+from pydantic import BeforeValidator, Field, model_validator
 
-from app.schemas.base import StrictModel, untagged_errors
+from app.schemas.base import FieldProblem, StrictModel, raise_problems, untagged_errors
 from app.schemas.limits import MAX_ITERATIONS, MAX_NODES, MAX_TIME_LIMIT_S
 
 DEFAULT_METHOD: Final[str] = "energy-scp"
@@ -201,28 +201,54 @@ class FohPtrOptions(ScpRunOptions):
         "on scaled deviations.",
     )
     weight_trust_region_min: float = Field(
-        0.02, gt=0, description="Smallest trust weight the adaptation may reach."
+        1.0e-5, gt=0, description="Smallest trust weight the adaptation may reach."
+    )
+    trust_defect_target: float = Field(
+        10.0,
+        gt=0,
+        description="Defect (a step's propagation minus its nodes, largest scaled state gap) the "
+        "trust weight aims at: after each step w_tr is multiplied by sqrt(defect / target), "
+        "clipped to [1/trust_factor, trust_factor].",
     )
     trust_factor: float = Field(
-        2.0,
+        8.0,
         ge=1,
-        description="Factor by which the trust weight grows when the last step's defect (its "
-        "propagation minus its nodes, in scaled units) exceeds defect_high, and shrinks below "
-        "defect_low; 1 keeps it fixed.",
+        description="Largest factor by which the trust weight changes per iteration; 1 keeps it "
+        "fixed.",
     )
-    defect_high: float = Field(1.0, gt=0, description="Defect above which w_tr grows.")
-    defect_low: float = Field(0.1, gt=0, description="Defect below which w_tr shrinks.")
-    weight_trust_interval: float = Field(
-        0.0,
+    trust_reversal_cosine: float = Field(
+        0.1,
         ge=0,
-        description="Weight w_tr2 of sum (s - s_bar)^2 on scaled interval changes (the paper omits "
-        "it: 0).",
+        le=1,
+        description="When a step points back along the previous one (cosine below minus this), "
+        "the iterates are swinging between two points: the trust weight then grows by "
+        "trust_factor whatever the defect.",
+    )
+    second_order: bool = Field(
+        True,
+        description="Add the Lagrangian curvature of the exact FOH interval maps to the "
+        "subproblem (an SQP step, with the multipliers of the last subproblem); exact_foh only. "
+        "false gives paper 002's first-order PTR step; see docs/methods/foh-ptr.md.",
+    )
+    second_order_substeps: int = Field(
+        2,
+        ge=1,
+        le=50,
+        description="RK4 steps per interval of the integrations that difference the maps' "
+        "Jacobians for the curvature (it only shapes the step, not the dynamics' accuracy).",
+    )
+    weight_trust_interval: float = Field(
+        10.0,
+        ge=0,
+        description="Weight w_tr2 of sum (s - s_bar)^2 on scaled interval changes (paper 002's "
+        "J_tr,2; it damps the nearly free sliding of nodes along the trajectory).",
     )
     weight_nonlinear: float = Field(
-        1.0e4,
+        0.0,
         ge=0,
         description="Weight w_nl of the second-order path-limit term sum (V - V_bar)^2 / V_bar^2 "
-        "(paper 002 eq. 26).",
+        "(paper 002 eq. 26). With second_order it only damps the step (0 converges fastest); "
+        "the first-order step needs it (about 1e4).",
     )
     weight_no_fly_zone: float = Field(
         1.0,
@@ -234,10 +260,11 @@ class FohPtrOptions(ScpRunOptions):
         3, ge=0, le=50, description="Nodes on each side of the closest approach in the window."
     )
     no_fly_zone_engage_deg: float = Field(
-        0.2,
+        0.0,
         ge=0,
         description="The distance penalty acts only once the reference comes within this of a "
-        "zone's edge, deg (a zone the path clears is left alone).",
+        "zone's edge, deg; 0: once it touches or enters the zone (the penalty pulls toward the "
+        "centre, so acting on a zone the path clears would cost the objective).",
     )
     weight_virtual_control: float = Field(
         1.0e3,
@@ -266,6 +293,23 @@ class FohPtrOptions(ScpRunOptions):
         default_factory=FohStopTolerance,
         description="Per-state change below which the iteration has converged.",
     )
+
+    @model_validator(mode="after")
+    def _second_order_needs_exact_maps(self) -> FohPtrOptions:
+        if self.second_order and self.discretization != "exact_foh":
+            raise_problems(
+                "FohPtrOptions",
+                [
+                    FieldProblem(
+                        ("second_order",),
+                        "second_order_discretization",
+                        "second_order needs discretization exact_foh (the trapezoidal maps have "
+                        "no curvature term); set second_order to false",
+                        self.second_order,
+                    )
+                ],
+            )
+        return self
 
 
 METHOD_OPTIONS: dict[str, type[StrictModel]] = {

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 from pydantic import Field, model_validator
 
@@ -78,6 +79,25 @@ class NoFlyZone(_Circle):
     def center_deg(self) -> tuple[float, float]:
         """Latitude and longitude of the center, deg."""
         return self.center_latitude_deg, self.center_longitude_deg
+
+    metric: Literal["great_circle", "lat_lon"] = Field(
+        "great_circle",
+        description='How the distance to the center is measured: "great_circle", the central '
+        'angle (a circle on the sphere); "lat_lon", sqrt(dlat^2 + dlon^2) in degrees of '
+        "latitude and longitude, as in paper 002 eq. 27 (on the sphere an ellipse, narrower "
+        "east-west by cos(latitude)).",
+    )
+
+    def contains_point(
+        self, latitude_deg: float, longitude_deg: float, planet_radius_m: float
+    ) -> bool:
+        """Whether a surface point is strictly inside the zone, in the zone's own metric."""
+        if self.metric == "great_circle":
+            return super().contains_point(latitude_deg, longitude_deg, planet_radius_m)
+        d = math.hypot(
+            latitude_deg - self.center_latitude_deg, longitude_deg - self.center_longitude_deg
+        )
+        return math.radians(d) < self.radius_rad(planet_radius_m)
 
 
 class Waypoint(_Circle):

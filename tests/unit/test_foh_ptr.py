@@ -1,9 +1,10 @@
-"""The time-domain SCP of paper 002 ("foh-ptr") end to end on its built-in case-1 scenario.
+"""The time-domain SCP of paper 002 ("foh-ptr") end to end on its built-in case-1 and case-2
+scenarios and on the scenario with an active no-fly zone.
 
-Acceptance figures of the issue: terminal velocity within 0.3 % of 971.03 m/s (independent NLP
-collocation, 801 nodes), at most 15 iterations, propagated terminal residuals within Table 4's
-for 40 nodes, path limits within 1 % between nodes. Which of them are met is recorded below and
-in docs/methods/foh-ptr.md; the unmet ones are strict expected failures so a fix shows up.
+Acceptance figures: terminal velocity within 0.3 % of 971.03 m/s (independent NLP collocation,
+801 nodes), at most 15 iterations, propagated terminal residuals within Table 4's for 40 nodes,
+path limits within 1 % between nodes, an active zone entered by at most 0.05 deg; recorded with
+the commands in docs/methods/foh-ptr.md.
 """
 
 from __future__ import annotations
@@ -79,18 +80,51 @@ def test_both_grids_are_feasible_between_nodes(
 
 
 def test_node_only_limits_leave_the_heat_peak_between_nodes() -> None:
-    """Without the between-node rows (the paper's node-only limits) the adaptive grid puts the
-    heat-rate peak between two nodes: the rows, not luck, keep the solution feasible."""
+    """Without the between-node rows (the paper's node-only limits) the heat-rate peak falls
+    between two nodes, beyond the 1 % the acceptance allows: the rows, not luck, keep the
+    solution feasible."""
     result = solve_problem(_doc(grid="adaptive", intersample_constraints=False))
-    assert result["verification"]["path_maxima"]["heat_rate_W_m2"]["ratio"] > 1.05
+    assert result["verification"]["path_maxima"]["heat_rate_W_m2"]["ratio"] > 1.01
 
 
-@pytest.mark.xfail(strict=True, reason="measured 939-943 m/s: a poorer local optimum")
 def test_terminal_velocity_matches_reference(
     adaptive: dict[str, Any], uniform: dict[str, Any]
 ) -> None:
-    vf = max(adaptive["objective"]["value"], uniform["objective"]["value"])
-    assert abs(vf / REFERENCE_VF_M_S - 1.0) <= 0.003
+    """Acceptance: within 0.3 % of the 801-node collocation optimum, on each grid. 40 nodes give
+    the bank fewer degrees of freedom, so the value may only fall short of the reference by that
+    much (measured 969.3 and 969.2 m/s); above it would mean a defect or a violated limit."""
+    for result in (adaptive, uniform):
+        vf = result["objective"]["value"]
+        assert REFERENCE_VF_M_S * (1.0 - 0.003) <= vf <= REFERENCE_VF_M_S + 0.5, vf
+
+
+def test_first_order_step_stops_short() -> None:
+    """The paper's first-order PTR step (second_order false) with its damping converges early, on
+    a point the SQP step improves on by about 3 %: the curvature term is what reaches the
+    reference."""
+    result = solve_problem(
+        _doc(
+            grid="uniform",
+            second_order=False,
+            weight_nonlinear=1.0e4,
+            weight_trust_region_min=0.02,
+            trust_defect_target=0.3,
+            trust_factor=2.0,
+        )
+    )
+    assert result["status"] == "succeeded"
+    assert result["objective"]["value"] < REFERENCE_VF_M_S * (1.0 - 0.02)
+    assert not any(h["extra"]["second_order_step"] for h in result["history"])
+
+
+def test_printed_case_2_zone_is_not_active() -> None:
+    """Case 2 as printed: measured as paper 002 eq. 27 does (metric lat_lon) the zone stays clear
+    of the optimal path, so the terminal velocity is case 1's (within the same 0.3 %)."""
+    result = solve_problem(_doc("rlv-max-terminal-velocity-nfz"))
+    assert result["status"] == "succeeded", result.get("failure")
+    (zone,) = result["verification"]["no_fly_zones"]
+    assert zone["min_clearance_deg"] > 0.1
+    assert abs(result["objective"]["value"] / REFERENCE_VF_M_S - 1.0) <= 0.003
 
 
 def test_support_check_refuses_what_it_cannot_do() -> None:

@@ -67,6 +67,7 @@ class CircleZone:
     radius: float
     name: str | None = None
     order: int = 0
+    metric: str = "great_circle"  # or "lat_lon": sqrt(dlat^2 + dlon^2) (paper 002 eq. 27)
 
 
 @dataclass
@@ -183,6 +184,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
             longitude=math.radians(z.center_longitude_deg),
             radius=_zone_radius_rad(z, planet.radius_m),
             name=z.name,
+            metric=z.metric,
         )
         for z in doc.no_fly_zones
     ]

@@ -20,6 +20,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.dynamics import time_dynamics
 from worker.solver.path_limits import path_values
 from worker.solver.problem import STATE_NAMES, EntryProblem
@@ -135,15 +136,6 @@ def propagate(
     )
 
 
-def _great_circle(lat1: Array, lon1: Array, lat2: float, lon2: float) -> Array:
-    """Central angle (rad) between points, haversine form."""
-    a = (
-        np.sin((lat2 - lat1) / 2) ** 2
-        + np.cos(lat1) * np.cos(lat2) * np.sin((lon2 - lon1) / 2) ** 2
-    )
-    return 2.0 * np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0)))
-
-
 def verify(
     problem: EntryProblem,
     traj: OptimizedTrajectory,
@@ -245,7 +237,7 @@ def verify(
     zones = []
     zones_ok = True
     for z in problem.no_fly_zones:
-        d = _great_circle(y_fine[:, 2], y_fine[:, 1], z.latitude, z.longitude) - z.radius
+        d = zone_distance(y_fine[:, 2], y_fine[:, 1], z).c - z.radius
         clearance_deg = math.degrees(float(np.min(d)))
         ok = clearance_deg >= -tol.no_fly_zone_deg
         zones_ok &= ok

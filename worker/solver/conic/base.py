@@ -43,6 +43,9 @@ class ConicSolution:
     solver: str
     clarabel_setup_s: float = 0.0
     """Time inside Clarabel's own constructor or ``update()`` (its setup work) for this solve."""
+    y: NDArray[np.float64] | None = None
+    """Multipliers of the rows of A x + s = b in Clarabel's sign (P x + q + A'y = 0), when the
+    backend reports them for every row; the SQP step of the time-domain SCP needs them."""
 
 
 @runtime_checkable

@@ -193,4 +193,5 @@ class ClarabelBackend:
             setup_time_s=max(wall - solve_time, 0.0),
             clarabel_setup_s=self._inside_s,
             solver=self.name,
+            y=np.asarray(result.z, dtype=np.float64) if status.usable else None,
         )

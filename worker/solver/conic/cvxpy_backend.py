@@ -91,6 +91,20 @@ class CvxpyBackend:
             constraints.append(cp.SOC(t, tail, axis=0))
         return constraints
 
+    @staticmethod
+    def _multipliers(model: Any, problem: ConeProblem) -> np.ndarray | None:
+        """Row multipliers in Clarabel's sign from cvxpy's duals of ``A x == b`` and ``A x <= b``
+        (cvxpy's Lagrangian adds y'(A x - b) for both); None with second-order cones, whose
+        duals cvxpy reports in a different layout."""
+        spec = problem.cones
+        if spec.soc_dims or not model.constraints:
+            return None
+        parts = [
+            np.atleast_1d(np.asarray(c.dual_value, dtype=np.float64)) for c in model.constraints
+        ]
+        y = np.concatenate(parts) if parts else np.zeros(0)
+        return y if y.size == problem.m and np.all(np.isfinite(y)) else None
+
     def solve(self, problem: ConeProblem, *, time_limit_s: float | None = None) -> ConicSolution:
         """Build the cvxpy model, solve it, and map cvxpy's status to a ConicStatus."""
         start = perf_counter()
@@ -122,6 +136,7 @@ class CvxpyBackend:
         solve_time_s = float(solve_time) if solve_time is not None else wall
         iterations = getattr(stats, "num_iters", None)
         return ConicSolution(
+            y=self._multipliers(model, problem) if status.usable else None,
             x=np.asarray(x.value, dtype=np.float64) if status.usable else None,
             status=status,
             raw_status=raw_status,

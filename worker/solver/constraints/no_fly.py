@@ -14,10 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.constraints.between_nodes import rows_at_worst_sample
+from worker.solver.constraints.between_nodes import smooth_max_rows
 from worker.solver.problem import CircleZone
 from worker.solver.transcription.foh_exact import InnerSamples
 from worker.solver.transcription.foh_subproblem import InnerRows
+
+SMOOTH_WIDTH_RAD = float(np.radians(0.005))
+"""Smoothing width of the between-node zone rows (central angle, rad): conservative by at most
+0.005 deg x ln 7 = 0.01 deg with 7 interior samples, a fifth of the 0.05 deg intrusion bound."""
 
 Array = np.ndarray
 
@@ -46,6 +50,22 @@ def central_angle(lat: Array, lon: Array, zone: CircleZone) -> ZoneRows:
     return ZoneRows(c=c, c_lat=dc_da * a_lat, c_lon=dc_da * a_lon)
 
 
+def lat_lon_distance(lat: Array, lon: Array, zone: CircleZone) -> ZoneRows:
+    """sqrt(dlat^2 + dlon^2) to ``zone``'s centre and its partials: paper 002's zone metric
+    (eq. 27 linearizes its square), rad."""
+    dlat = lat - zone.latitude
+    dlon = lon - zone.longitude
+    c = np.maximum(np.hypot(dlat, dlon), 1e-300)
+    return ZoneRows(c=c, c_lat=dlat / c, c_lon=dlon / c)
+
+
+def zone_distance(lat: Array, lon: Array, zone: CircleZone) -> ZoneRows:
+    """Distance to ``zone``'s centre in the zone's metric, with partials (rad, per rad)."""
+    if zone.metric == "lat_lon":
+        return lat_lon_distance(lat, lon, zone)
+    return central_angle(lat, lon, zone)
+
+
 def penalty_window(clearance: Array, half_width: int) -> Array:
     """Boolean mask of the nodes within ``half_width`` of the smallest ``clearance``."""
     k = clearance.size
@@ -58,17 +78,22 @@ def penalty_window(clearance: Array, half_width: int) -> Array:
 def inner_zone_rows(
     zones: list[CircleZone], samples: InnerSamples, margin: float = 0.0
 ) -> InnerRows:
-    """Zone exclusions between the nodes: R + margin - c <= 0 at each interval's interior sample
-    nearest the zone, linearized through the exact FOH maps (``between_nodes``), so a sparse grid
-    cannot step over a zone between two nodes."""
+    """Zone exclusions between the nodes: R + margin - c <= 0 as the smooth maximum over each
+    interval's interior samples (width ``SMOOTH_WIDTH_RAD``), linearized through the exact FOH
+    maps (``between_nodes``), so a sparse grid cannot step over a zone between two nodes."""
     n, j, nz = samples.x.shape
     lat = samples.x[..., 2].ravel()
     lon = samples.x[..., 1].ravel()
     g = np.empty((n * j, len(zones)))
     grad = np.zeros((n * j, len(zones), nz))
     for i, zone in enumerate(zones):
-        rows = central_angle(lat, lon, zone)
+        rows = zone_distance(lat, lon, zone)
         g[:, i] = zone.radius + margin - rows.c
         grad[:, i, 2] = -rows.c_lat
         grad[:, i, 1] = -rows.c_lon
-    return rows_at_worst_sample(g.reshape(n, j, -1), grad.reshape(n, j, len(zones), nz), samples)
+    return smooth_max_rows(
+        g.reshape(n, j, -1),
+        grad.reshape(n, j, len(zones), nz),
+        samples,
+        np.full(len(zones), SMOOTH_WIDTH_RAD),
+    )

@@ -18,15 +18,16 @@ from typing import Any
 import numpy as np
 
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
-from worker.solver.constraints.between_nodes import stack_rows
+from worker.solver.constraints.between_nodes import stack_rows, with_end_points
 from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
-from worker.solver.constraints.no_fly import central_angle, inner_zone_rows, penalty_window
+from worker.solver.constraints.no_fly import inner_zone_rows, penalty_window, zone_distance
 from worker.solver.dynamics_bank_state import NZ
 from worker.solver.method_result import MethodStatus as ScpStatus
 from worker.solver.problem import STATE_NAMES, EntryProblem
 from worker.solver.scp.foh_objective import TimeObjective
 from worker.solver.scp.history import IterationRecord
 from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
+from worker.solver.transcription.foh_hessian import lagrangian_hessian
 from worker.solver.transcription.foh_subproblem import (
     FohSubproblem,
     GridLimits,
@@ -40,6 +41,9 @@ from worker.solver.verification import OptimizedTrajectory
 Array = np.ndarray
 
 STATE_KEYS = STATE_NAMES  # the terminal conditions, in time-form state order
+DIFFERENCE_STEP = 1e-5
+"""Step of the Hessian's forward differences in scaled subproblem units (1 cm of altitude, about
+0.02 m/s of speed): truncation error ~1e-5 relative, rounding ~1e-11."""
 
 
 def state_scale(problem: EntryProblem) -> Array:
@@ -152,6 +156,8 @@ class _Linearizer:
             and (self.limits or self.zones)
         )
         self.inner_ratio = np.zeros(len(self.limits))
+        self.second_order = bool(options.second_order and options.discretization == "exact_foh")
+        self.difference_steps: Array | None = None  # set once the subproblem's scales are known
 
     def maps(self, z: Array, w: Array, s: Array) -> IntervalMaps:
         p, o = self.problem, self.options
@@ -159,22 +165,42 @@ class _Linearizer:
             return trapezoid_maps(z, w, s, p.forces, p.omega)
         return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, inner=self.inner_on)
 
-    def data(self, z: Array, w: Array, s: Array) -> tuple[SubproblemData, Array]:
-        """Subproblem data about (z, w, s) and the path-limit ratios at the nodes (K, m)."""
+    def data(
+        self, z: Array, w: Array, s: Array, multipliers: Array | None = None
+    ) -> tuple[SubproblemData, Array]:
+        """Subproblem data about (z, w, s) and the path-limit ratios at the nodes (K, m).
+
+        ``multipliers`` (N, 7): the last subproblem's multipliers of the dynamics rows, in
+        nondimensional state units; with them (and ``second_order``) the data carry the
+        Lagrangian curvature of the interval maps.
+        """
         p, o = self.problem, self.options
         k = z.shape[0]
         mp = self.maps(z, w, s)
+        hessian = None
+        if multipliers is not None and self.second_order and self.difference_steps is not None:
+            hessian = lagrangian_hessian(
+                z,
+                w,
+                s,
+                p.forces,
+                p.omega,
+                -multipliers,  # the rows read x_{k+1} - Phi_k(v_k): Phi_k enters with a minus
+                self.difference_steps,
+                o.second_order_substeps,
+                with_interval=self.difference_steps.size == NZ + 3,
+            )
         ft = p.forces.terms(z[:, 0], z[:, 3])
         rows = log_path_rows(p, z[:, 0], z[:, 3], ft)
         inner = None
         if self.inner_on:
-            assert mp.inner is not None
+            samples = with_end_points(z, mp)
             parts = []
             if self.limits:
-                parts.append(inner_path_rows(p, mp.inner))
-                self.inner_ratio = np.exp(np.max(parts[0].g, axis=0))
+                parts.append(inner_path_rows(p, samples))
+                self.inner_ratio = np.exp(np.max(parts[0].worst, axis=0))
             if self.zones:
-                parts.append(inner_zone_rows(self.zones, mp.inner, self.margin))
+                parts.append(inner_zone_rows(self.zones, samples, self.margin))
             inner = stack_rows(parts)
         if self.objective is None:
             self.objective = TimeObjective(p, self.scale, z, s)
@@ -192,7 +218,7 @@ class _Linearizer:
         self.windows = []
         self.zone_clearance = []
         for i, zone in enumerate(self.zones):
-            rows_z = central_angle(z[:, 2], z[:, 1], zone)
+            rows_z = zone_distance(z[:, 2], z[:, 1], zone)
             clearance = rows_z.c - zone.radius
             zc[i] = clearance - self.margin
             zlat[i] = rows_z.c_lat
@@ -203,7 +229,7 @@ class _Linearizer:
                 mask = penalty_window(clearance, o.no_fly_zone_window)
                 self.windows.append([int(j) for j in np.flatnonzero(mask)])
                 wz = o.weight_no_fly_zone / zone.radius**2
-                coslat = math.cos(zone.latitude)
+                coslat = math.cos(zone.latitude) if zone.metric == "great_circle" else 1.0
                 quad[mask, 2] += wz
                 weighted_c[mask, 2] += wz * zone.latitude
                 quad[mask, 1] += wz * coslat**2
@@ -230,8 +256,18 @@ class _Linearizer:
             quad_z=quad,
             quad_center=quad_c,
             inner=inner,
+            hessian=hessian,
         )
         return data, rows.ratio
+
+
+def _finite(data: SubproblemData) -> bool:
+    """Whether the linearization is usable (a long step can leave the atmosphere model)."""
+    mp = data.maps
+    parts = [mp.x_prop, mp.Phi, mp.Bm, mp.Bp, mp.S, data.path_g]
+    if data.inner is not None:
+        parts.append(data.inner.g)
+    return all(bool(np.all(np.isfinite(a))) for a in parts)
 
 
 def _defect(data: SubproblemData, scale: Array) -> tuple[Array, float]:
@@ -239,6 +275,20 @@ def _defect(data: SubproblemData, scale: Array) -> tuple[Array, float]:
     (nondimensional) and overall in scaled units. It judges the step that made the reference."""
     by_state = np.max(np.abs(data.maps.x_prop - data.z[1:]), axis=0)
     return by_state, float(np.max(by_state / scale))
+
+
+def _adapt_trust_weight(w_tr: float, defect: float, options: Any) -> float:
+    """Scale w_tr by sqrt(defect / target), within trust_factor either way: a step's defect grows
+    about as the square of its length, and its length as 1 / w_tr (paper 002 keeps w_tr fixed)."""
+    factor = math.sqrt(max(defect, 1e-12) / options.trust_defect_target)
+    factor = min(max(factor, 1.0 / options.trust_factor), options.trust_factor)
+    return min(max(w_tr * factor, options.weight_trust_region_min), 1e3)
+
+
+def _cosine(a: Array, b: Array) -> float:
+    """Cosine of the angle between two steps (0 when either is zero)."""
+    norm = float(np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.dot(a, b)) / norm if norm > 0.0 else 0.0
 
 
 @dataclass
@@ -251,6 +301,7 @@ class _Proposal:
     virtual: float
     cost: float
     values: dict[str, float]
+    reversal: float  # cosine between this step and the one before (-1: straight back)
 
 
 def run_foh_ptr(
@@ -305,7 +356,9 @@ def run_foh_ptr(
         weight_trust_region=options.weight_trust_region,
         weight_trust_interval=options.weight_trust_interval,
         weight_buffer=options.weight_virtual_control,
+        hessian_blocks=lin.second_order,
     )
+    lin.difference_steps = DIFFERENCE_STEP * sub.block_scale
     backend = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
     tol_z, tol_s = _tolerances(options, problem)
     history: list[IterationRecord] = []
@@ -317,6 +370,8 @@ def run_foh_ptr(
     extra: dict[str, Any] = {"initial_bank_deg": ref.bank_deg}
     pending: _Proposal | None = None
     it_start = time.perf_counter()
+    last_multipliers: Array | None = None
+    last_step: Array | None = None
     data, ratio = lin.data(z, w, s)
     defect_by_state, defect = _defect(data, scale)
 
@@ -332,10 +387,10 @@ def run_foh_ptr(
     while True:
         converged = False
         if pending is not None:  # judge the last step at its own reference
-            if defect > options.defect_high:
-                w_tr = min(w_tr * options.trust_factor, 1e3)
-            elif defect < options.defect_low:
-                w_tr = max(w_tr / options.trust_factor, options.weight_trust_region_min)
+            if pending.reversal < -options.trust_reversal_cosine:  # the iterates swing back
+                w_tr = min(pending.weight_trust_region * options.trust_factor, 1e3)
+            else:
+                w_tr = _adapt_trust_weight(w_tr, defect, options)
             pending.record.extra["step_defect"] = defect
             emit(pending.record)
             values = pending.values
@@ -399,6 +454,11 @@ def run_foh_ptr(
                 f"iteration {it}: convex subproblem {sol.status.value} "
                 f"({sol.solver}: {sol.raw_status})",
             )
+        multipliers = (
+            sol.y[: sub.N * NZ].reshape(sub.N, NZ) / scale  # the rows are divided by the scale
+            if lin.second_order and sol.y is not None
+            else None
+        )
         new = sub.unpack(sol.x, data)
         change = np.max(np.abs(new.z - z), axis=0)
         change_s = float(np.max(np.abs(new.s - s))) if s.size else 0.0
@@ -406,6 +466,8 @@ def run_foh_ptr(
         new_values = lin.objective.values(new.z, new.s)
         cost = lin.objective.normalized(new_values)
         tr_slack = float(np.sum(new.dz**2) + np.sum(new.dw**2))
+        step = np.concatenate([new.dz.ravel(), new.dw])
+        reversal = _cosine(step, last_step) if last_step is not None else 0.0
         nl_pen = float(np.sum(data.quad_z[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
         zone_pen = float(
             np.sum(data.quad_z[:, 1:3] * (new.z[:, 1:3] - data.quad_center[:, 1:3]) ** 2)
@@ -457,6 +519,7 @@ def run_foh_ptr(
                 "no_fly_zone_clearance_deg": list(lin.zone_clearance),
                 "no_fly_zone_window_nodes": [list(wd) for wd in lin.windows],
                 "discretization_s": lin_s,
+                "second_order_step": data.hessian is not None,
                 "weight_trust_region": w_tr,
                 "node_times_s": t_nodes.tolist(),
             },
@@ -468,9 +531,22 @@ def run_foh_ptr(
             virtual=vc_norm,
             cost=cost,
             values=new_values,
+            reversal=reversal,
         )
-        z, w, s = new.z, new.w, new.s
-        data, ratio = lin.data(z, w, s)  # the next linearization also judges this step
+        previous = (z, w, s, last_multipliers)
+        z, w, s, last_multipliers = new.z, new.w, new.s, multipliers
+        data, ratio = lin.data(z, w, s, multipliers)  # the next linearization judges this step
+        if not _finite(data):  # reject the step: back to the reference, heavier trust weight
+            z, w, s, last_multipliers = previous
+            data, ratio = lin.data(z, w, s, last_multipliers)
+            w_tr = min(w_tr * options.trust_factor, 1e3)
+            record.extra["rejected"] = "the step's propagation left the models' range"
+            record.iteration_wall_s = time.perf_counter() - it_start
+            it_start = time.perf_counter()
+            emit(record)
+            pending = None
+            continue
+        last_step = step
         defect_by_state, defect = _defect(data, scale)
         record.iteration_wall_s = time.perf_counter() - it_start
         it_start = time.perf_counter()

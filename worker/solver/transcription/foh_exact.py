@@ -101,10 +101,28 @@ def foh_exact(
     and eq. 24); the accuracy for a given substep count is measured in the method's docs. With
     ``inner``, the interior substeps are kept as well (``IntervalMaps.inner``).
     """
+    return interval_maps(z[:-1], w[:-1], w[1:], s, forces, omega, substeps, inner)
+
+
+def interval_maps(
+    x0: Array,
+    w0: Array,
+    w1: Array,
+    s: Array,
+    forces: VehicleForces,
+    omega: float,
+    substeps: int = DEFAULT_SUBSTEPS,
+    inner: bool = False,
+) -> IntervalMaps:
+    """The exact FOH maps of independent intervals: start states ``x0`` (M, 7), end-point bank
+    rates ``w0``, ``w1`` (M,) and lengths ``s`` (M,), all integrated at once.
+
+    ``foh_exact`` calls it with consecutive nodes; the Lagrangian Hessian (``foh_hessian``) with
+    perturbed copies of every interval stacked into one batch.
+    """
     n = s.size
-    w0, w1 = w[:-1], w[1:]
     state = np.zeros((n, NZ, NZ + 4))
-    state[:, :, 0] = z[:-1]
+    state[:, :, 0] = x0
     state[:, :, 1 : NZ + 1] = np.eye(NZ)
 
     def rhs(tau: float, y: Array) -> Array:

@@ -7,7 +7,8 @@ Constraints: the stitched interval dynamics E dz_{k+1} = Phi dz_k + B- dw_k + B+
 conditions, |sigma| <= sigma_max, |w| <= w_max, the linearized log path limits (eq. 25-26), the
 linearized no-fly zones (eq. 27), and on the adaptive grid Delta_min <= s_k <= Delta_max,
 |s_k - s_bar_k| <= DeltaT_max and sum s_k = t_f (eq. 11-12). It is a QP (no cones beyond the
-nonnegative orthant); the objective's quadratic part is diagonal.
+nonnegative orthant); the objective's quadratic part is diagonal, plus, for the SQP step, one
+convexified Lagrangian Hessian block per interval on (dz_k, dw_k, dw_{k+1}[, ds_k]).
 
 The pattern is built once; ``build`` only writes values into the preallocated data arrays.
 """
@@ -22,6 +23,7 @@ import numpy as np
 from worker.solver.conic import ConeProblem, ConeSpec, SparseAssembler
 from worker.solver.dynamics_bank_state import NZ, SIGMA
 from worker.solver.transcription.foh_exact import IntervalMaps
+from worker.solver.transcription.foh_hessian import convexify
 
 Array = np.ndarray
 R_, TH_, PH_, V_ = 0, 1, 2, 3
@@ -74,15 +76,18 @@ class SubproblemData:
     quad_z: Array  # (K, 7)
     quad_center: Array  # (K, 7)
     inner: InnerRows | None = None
+    hessian: Array | None = None  # (N, nb, nb) Lagrangian curvature in nondimensional units
 
 
 @dataclass
 class InnerRows:
-    """Constraints linearized at one interior point per interval (path limits, then zones).
+    """Constraints between the nodes, one row per interval and constraint (path limits, then
+    zones).
 
-    Row (k, m): g + c_z . dz_k + c_wm dw_k + c_wp dw_{k+1} + c_s ds_k <= 0, constraint m at
-    interval k's worst interior sample carried through the exact FOH deviation maps
-    (constraints.between_nodes), in nondimensional units.
+    Row (k, m): g + c_z . dz_k + c_wm dw_k + c_wp dw_{k+1} + c_s ds_k <= 0: constraint m over
+    interval k's samples (the smooth maximum of ``constraints.between_nodes``) carried through
+    the exact FOH deviation maps, in nondimensional units. ``worst`` is the largest sample value
+    itself, for reports.
     """
 
     g: Array  # (N, m)
@@ -90,6 +95,7 @@ class InnerRows:
     c_wm: Array  # (N, m)
     c_wp: Array  # (N, m)
     c_s: Array  # (N, m)
+    worst: Array  # (N, m)
 
 
 @dataclass
@@ -127,6 +133,7 @@ class FohSubproblem:
         weight_trust_region: float,
         weight_trust_interval: float,
         weight_buffer: float = 0.0,
+        hessian_blocks: bool = False,
     ) -> None:
         self.K = K = nodes
         self.N = N = nodes - 1
@@ -164,6 +171,12 @@ class FohSubproblem:
         self._buf_base = weight_buffer
         self.set_virtual_factor(1.0)
         self.n_quad = K * NZ + K + self.col_s.size  # diagonal of P covers z, w and s
+        self.hessian_blocks = hessian_blocks
+        cols = [self.col_z[:-1], self.col_w[:-1, None], self.col_w[1:, None]]
+        if self.adaptive:
+            cols.append(self.col_s[:, None])
+        self.block_cols = np.concatenate(cols, axis=1)  # (N, nb) variables of each interval
+        self.block_scale = np.r_[self.Dz, self.Dw, self.Dw, [self.Ds] if self.adaptive else []]
         self._structure()
 
     def set_virtual_factor(self, factor: float) -> None:
@@ -279,7 +292,17 @@ class FohSubproblem:
         pos = self.A_asm.positions
         self._slots = {name: pos[sl] for name, sl in self._blocks.items()}
         diag = np.arange(self.n_quad)
-        self.P_asm = SparseAssembler(diag, diag, (self.n, self.n), upper_triangular=True)
+        p_rows, p_cols = [diag], [diag]
+        nb = self.block_cols.shape[1]
+        self._upper = np.triu_indices(nb)
+        if self.hessian_blocks:  # one upper triangle per interval block; overlaps are summed
+            a = self.block_cols[:, self._upper[0]].ravel()
+            b = self.block_cols[:, self._upper[1]].ravel()
+            p_rows.append(np.minimum(a, b))
+            p_cols.append(np.maximum(a, b))
+        self.P_asm = SparseAssembler(
+            np.concatenate(p_rows), np.concatenate(p_cols), (self.n, self.n), upper_triangular=True
+        )
         self._scale_rows = np.tile(1.0 / Dz, N)  # dynamics rows divided by the state scale
 
     # ------------------------------------------------------------------ values
@@ -354,11 +377,15 @@ class FohSubproblem:
                 b[row], b[row + 1] = t.hi - zr, zr - t.lo
                 row += 2
 
-        p = np.empty(self.n_quad)
+        n_blocks = N * self._upper[0].size if self.hessian_blocks else 0
+        p = np.zeros(self.n_quad + n_blocks)
         pz = p[: K * NZ].reshape(K, NZ)
         pz[:] = 2.0 * self.w_tr + 2.0 * d.quad_z * Dz[None, :] ** 2
         p[K * NZ : K * NZ + K] = 2.0 * self.w_tr
-        p[K * NZ + K :] = 2.0 * self.w_tr2
+        p[K * NZ + K : self.n_quad] = 2.0 * self.w_tr2
+        if self.hessian_blocks and d.hessian is not None:
+            scaled = d.hessian * self.block_scale[None, :, None] * self.block_scale[None, None, :]
+            p[self.n_quad :] = convexify(scaled)[:, self._upper[0], self._upper[1]].ravel()
         q = np.zeros(self.n)
         qz = q[: K * NZ].reshape(K, NZ)
         qz[:] = d.grad_z * Dz[None, :] + 2.0 * d.quad_z * (d.z - d.quad_center) * Dz[None, :]
@@ -366,7 +393,7 @@ class FohSubproblem:
             q[self.col_s] = d.grad_s * Ds
         q[self.col_soft] = self.soft_weights
         q[self.col_buf] = self.w_buf
-        return ConeProblem(P=self.P_asm.matrix(p), q=q, A=A, b=b, cones=self.cones)
+        return ConeProblem(P=self.P_asm.assemble(p), q=q, A=A, b=b, cones=self.cones)
 
     def unpack(self, x: Array, d: SubproblemData) -> Solution:
         """Nodes, rates, interval lengths and slacks of a subproblem solution ``x``."""

@@ -1,0 +1,84 @@
+"""Curvature of the exact FOH interval maps: the Lagrangian Hessian blocks of the SQP step.
+
+The subproblem's stitched dynamics x_{k+1} = Phi_k(v_k) linearize the interval map Phi_k about
+the reference, v_k = (z_k, w_k, w_{k+1}[, s_k]). With the constraint multipliers y_k of the last
+subproblem, the dynamics contribute sum_k y_k . (x_{k+1} - Phi_k(v_k)) to the Lagrangian, whose
+Hessian in v_k is -sum_i y_k,i d2 Phi_k,i / dv_k2: the curvature a first-order SCP leaves out
+(Nocedal & Wright, Numerical Optimization, 2nd ed., sec. 18.1, the SQP step; the per-interval
+blocks are those of multiple shooting, Bock & Plitt 1984). Each block is the forward difference of
+the maps' Jacobians (A, B-, B+, S of ``foh_exact``) along each interval variable, all copies of all
+intervals integrated in one batch; ``convexify`` keeps the subproblem a convex QP.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from worker.solver.dynamics_bank_state import NZ
+from worker.solver.forces import VehicleForces
+from worker.solver.transcription.foh_exact import IntervalMaps, interval_maps
+
+Array = np.ndarray
+
+
+def _jacobian(maps: IntervalMaps, with_interval: bool) -> Array:
+    """[Phi | B- | B+ (| S)] of every interval, (M, 7, nb)."""
+    parts = [maps.Phi, maps.Bm[:, :, None], maps.Bp[:, :, None]]
+    if with_interval:
+        parts.append(maps.S[:, :, None])
+    return np.concatenate(parts, axis=2)
+
+
+def lagrangian_hessian(
+    z: Array,
+    w: Array,
+    s: Array,
+    forces: VehicleForces,
+    omega: float,
+    weights: Array,
+    steps: Array,
+    substeps: int,
+    with_interval: bool,
+) -> Array | None:
+    """Hessian blocks (N, nb, nb) of sum_k weights_k . Phi_k(v_k) in the interval variables.
+
+    ``weights`` (N, 7) multiply the end states (the negated multipliers of the dynamics rows, in
+    nondimensional state units); ``steps`` (nb,) are the difference steps of z_k (7), w_k, w_{k+1}
+    and, ``with_interval``, s_k. None when a perturbed integration is not finite (a reference
+    that leaves the atmosphere model's range), so the caller can take a first-order step.
+    """
+    n = s.size
+    nb = NZ + 3 if with_interval else NZ + 2
+    copies = nb + 1  # the unperturbed intervals, then one perturbed copy per variable
+    x0 = np.tile(z[:-1], (copies, 1))
+    w0 = np.tile(w[:-1], copies)
+    w1 = np.tile(w[1:], copies)
+    ss = np.tile(s, copies)
+    for j in range(nb):
+        block = slice((j + 1) * n, (j + 2) * n)
+        if j < NZ:
+            x0[block, j] += steps[j]
+        elif j == NZ:
+            w0[block] += steps[j]
+        elif j == NZ + 1:
+            w1[block] += steps[j]
+        else:
+            ss[block] += steps[j]
+    with np.errstate(all="ignore"):
+        jac = _jacobian(interval_maps(x0, w0, w1, ss, forces, omega, substeps), with_interval)
+        jac = jac.reshape(copies, n, NZ, nb)
+        # column j: d/dv_j of J_k' weights_k (the gradient of weights . Phi_k)
+        grad = np.einsum("cnij,ni->cnj", jac, weights)
+        hess = (grad[1:] - grad[0][None]) / steps[:, None, None]  # (nb: column, N, nb: row)
+    if not np.all(np.isfinite(hess)):
+        return None
+    hess = np.transpose(hess, (1, 2, 0))  # (N, row, column)
+    return 0.5 * (hess + np.transpose(hess, (0, 2, 1)))
+
+
+def convexify(blocks: Array, floor: float = 0.0) -> Array:
+    """The blocks with every eigenvalue below ``floor`` raised to it (symmetric, PSD for floor >=
+    0): the nearest convex model of each block in the Frobenius norm (Higham 1988)."""
+    lam, vec = np.linalg.eigh(blocks)
+    lam = np.maximum(lam, floor)
+    return np.einsum("kij,kj,klj->kil", vec, lam, vec)
