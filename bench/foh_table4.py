@@ -1,9 +1,11 @@
 """Paper 002 Table 4 repeated: adaptive vs uniform exact FOH vs uniform trapezoid, case 1.
 
-Per configuration: status, iterations, wall time of the SCP loop, sum of conic solve times,
-their ratio, terminal velocity, and the propagated terminal residuals (verification's
-terminal_error_vs_optimized) and largest path-limit ratio between nodes. One solve each after a
-warm-up (imports, caches); absolute times depend on the machine, ratios much less.
+Per configuration: the step (the default SQP step with the maps' curvature, or paper 002's
+first-order PTR step with the damping it needs, ``FIRST_ORDER``; the trapezoidal maps have no
+curvature term), status, iterations, wall time of the SCP loop, sum of conic solve times, their
+ratio, terminal velocity, the propagated terminal residuals (verification's
+terminal_error_vs_optimized) and the largest path-limit ratio between nodes. One solve each after
+a warm-up (imports, caches); absolute times depend on the machine, ratios much less.
 
     python -m bench.foh_table4
 """
@@ -19,21 +21,33 @@ from worker.solver.scenarios import get_scenario
 from worker.solver.scp.foh_ptr import run_foh_ptr, to_trajectory
 from worker.solver.verification import verify
 
+FIRST_ORDER = {
+    "second_order": False,
+    "weight_nonlinear": 1.0e4,
+    "weight_trust_region_min": 0.02,
+    "trust_defect_target": 0.3,
+    "trust_factor": 2.0,
+}
+"""The first-order PTR step as paper 002 takes it, with the eq. 26 penalty and a trust-weight
+floor: without them its iterates oscillate (docs/methods/foh-ptr.md)."""
+
 CONFIGS = (
-    [("adaptive", "exact_foh", n) for n in (40, 50, 60)]
-    + [("uniform", "exact_foh", n) for n in (40, 50, 60)]
-    + [("uniform", "trapezoid", n) for n in (200, 300, 400)]
+    [("adaptive", "exact_foh", "sqp", n) for n in (40, 50, 60)]
+    + [("uniform", "exact_foh", "sqp", n) for n in (40, 50, 60)]
+    + [("adaptive", "exact_foh", "first-order", 40), ("uniform", "exact_foh", "first-order", 40)]
+    + [("uniform", "trapezoid", "first-order", n) for n in (200, 300, 400)]
 )
 
 
-def run(grid: str, discretization: str, nodes: int) -> dict[str, object]:
-    """One solve of case 1 with the given grid, discretization and node count."""
+def run(grid: str, discretization: str, step: str, nodes: int) -> dict[str, object]:
+    """One solve of case 1 with the given grid, discretization, step and node count."""
     raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
     raw["method"] = {
         "name": "foh-ptr",
         "nodes": nodes,
         "grid": grid,
         "discretization": discretization,
+        **(FIRST_ORDER if step == "first-order" else {}),
     }
     doc = ProblemDocument.model_validate(raw)
     model = build_problem(doc)
@@ -58,21 +72,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=("adaptive", "uniform", "trapezoid"), default=None)
     args = parser.parse_args()
-    run("uniform", "exact_foh", 40)  # warm-up
+    run("uniform", "exact_foh", "sqp", 40)  # warm-up
     print(
-        "| grid | discretization | nodes | status | iterations | wall s | conic s | wall/conic "
-        "| Vf m/s | dr m | dlon deg | dlat deg | dV m/s | dgamma deg | dpsi deg | path max ratio |"
+        "| grid | discretization | step | nodes | status | iterations | wall s | conic s "
+        "| wall/conic | Vf m/s | dr m | dlon deg | dlat deg | dV m/s | dgamma deg | dpsi deg "
+        "| path max ratio |"
     )
-    print("|---" * 16 + "|")
-    for grid, disc, nodes in CONFIGS:
+    print("|---" * 17 + "|")
+    for grid, disc, step, nodes in CONFIGS:
         key = "trapezoid" if disc == "trapezoid" else grid
         if args.only is not None and key != args.only:
             continue
-        r = run(grid, disc, nodes)
+        r = run(grid, disc, step, nodes)
         e = r["err"]
         assert isinstance(e, dict)
         print(
-            f"| {grid} | {disc} | {nodes} | {r['status']} | {r['iterations']} | "
+            f"| {grid} | {disc} | {step} | {nodes} | {r['status']} | {r['iterations']} | "
             f"{r['wall']:.3f} | {r['conic']:.3f} | {float(r['wall']) / float(r['conic']):.2f} | "  # type: ignore[arg-type]
             f"{r['vf']:.1f} | {abs(e['altitude_m']):.2f} | {abs(e['longitude_deg']):.4f} | "
             f"{abs(e['latitude_deg']):.4f} | {abs(e['velocity_m_s']):.3f} | "

@@ -239,6 +239,26 @@ def test_diagonal_psd_objective_agrees_with_ecos() -> None:
     assert ecos.objective == pytest.approx(direct.objective, rel=COST_RTOL)
 
 
+def test_multipliers_satisfy_stationarity_and_backends_agree() -> None:
+    """P x + q + A'y = 0 with y >= 0 on the inequality rows (Clarabel's sign), from both
+    backends, on a QP whose optimum has an active inequality and an equality."""
+    P = sp.triu(sp.csc_matrix(np.diag([2.0, 1.0, 3.0])), format="csc")
+    q = np.array([1.0, -3.0, 0.5])
+    A = sp.csc_matrix(np.array([[1.0, 1.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]))
+    b = np.array([1.0, 0.8, 10.0])  # x0 + x1 + x2 = 1, x1 <= 0.8 (active), -x0 <= 10
+    problem = ConeProblem(P=P, q=q, A=A, b=b, cones=ConeSpec(1, 2))
+    found = []
+    for backend in (ClarabelBackend(), CvxpyBackend("CLARABEL")):
+        solution = backend.solve(problem)
+        assert solution.x is not None and solution.y is not None
+        stationarity = P @ solution.x + q + A.T @ solution.y
+        # Interior-point tolerance 1e-8 on the gap and residuals; 1e-6 leaves room.
+        assert np.max(np.abs(stationarity)) < 1e-6
+        assert solution.y[1] > 0.1 and solution.y[2] >= -1e-8  # active and inactive rows
+        found.append(solution.y)
+    np.testing.assert_allclose(found[0], found[1], atol=1e-6)
+
+
 def test_linear_objective_on_unit_ball() -> None:
     q = np.array([3.0, -4.0, 0.0])
     problem = _unit_ball_problem(q)

@@ -202,6 +202,19 @@ def test_zone_radius_in_km_and_deg_agree() -> None:
     assert km.radius_rad(radius) == pytest.approx(deg.radius_rad(radius), rel=1e-12)
 
 
+def test_lat_lon_zone_is_narrower_east_west() -> None:
+    """Paper 002's zone metric (dlat, dlon in degrees): at 60 deg latitude a point 4 deg of
+    longitude off the centre is 2 deg of arc away, inside a 3 deg great-circle zone but outside
+    the same zone measured in lat-lon degrees."""
+    radius = 6378000.0
+    common = {"center_latitude_deg": 60.0, "center_longitude_deg": 0.0, "radius_deg": 3.0}
+    sphere = NoFlyZone(**common)
+    plane = NoFlyZone(**common, metric="lat_lon")
+    assert sphere.contains_point(60.0, 4.0, radius)
+    assert not plane.contains_point(60.0, 4.0, radius)
+    assert plane.contains_point(62.9, 0.0, radius) and sphere.contains_point(62.9, 0.0, radius)
+
+
 # ---------------------------------------------------------------- rejections
 
 
@@ -410,3 +423,11 @@ def test_cross_field_errors_are_all_reported_at_once() -> None:
     assert_issue(found, "terminal.altitude_m", "is above the initial altitude")
     assert_issue(found, "no_fly_zones[0]", "contains the initial point")
     assert_issue(found, "final_time.value_s", "must exceed the initial time")
+
+
+def test_second_order_step_needs_the_exact_maps() -> None:
+    document = reference()
+    document["method"] = {"name": "foh-ptr", "discretization": "trapezoid"}
+    assert_issue(issues_of(document), "method.second_order", "needs discretization exact_foh")
+    document["method"]["second_order"] = False
+    ProblemDocument.model_validate(document)
