@@ -39,14 +39,21 @@ CONFIGS = (
 )
 
 
-def run(grid: str, discretization: str, step: str, nodes: int) -> dict[str, object]:
-    """One solve of case 1 with the given grid, discretization, step and node count."""
+GUESSES_DEG = (-10.0, 0.0, 10.0, 20.0, 30.0)
+"""Constant banks of the initial reference for ``--guesses`` (the sweep picks +20 deg)."""
+
+
+def run(
+    grid: str, discretization: str, step: str, nodes: int, bank_deg: float | None = None
+) -> dict[str, object]:
+    """One solve of case 1 with the given grid, discretization, step, node count and guess."""
     raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
     raw["method"] = {
         "name": "foh-ptr",
         "nodes": nodes,
         "grid": grid,
         "discretization": discretization,
+        "initial_bank_deg": bank_deg,
         **(FIRST_ORDER if step == "first-order" else {}),
     }
     doc = ProblemDocument.model_validate(raw)
@@ -71,8 +78,25 @@ def run(grid: str, discretization: str, step: str, nodes: int) -> dict[str, obje
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=("adaptive", "uniform", "trapezoid"), default=None)
+    parser.add_argument(
+        "--guesses",
+        action="store_true",
+        help="instead: 40 nodes, both grids, from each constant-bank guess of GUESSES_DEG",
+    )
     args = parser.parse_args()
     run("uniform", "exact_foh", "sqp", 40)  # warm-up
+    if args.guesses:
+        print("| grid | initial bank deg | status | iterations | wall s | Vf m/s |")
+        print("|---" * 6 + "|")
+        for grid in ("adaptive", "uniform"):
+            for bank in GUESSES_DEG:
+                r = run(grid, "exact_foh", "sqp", 40, bank)
+                print(
+                    f"| {grid} | {bank:+.0f} | {r['status']} | {r['iterations']} | "
+                    f"{r['wall']:.3f} | {r['vf']:.1f} |",
+                    flush=True,
+                )
+        return
     print(
         "| grid | discretization | step | nodes | status | iterations | wall s | conic s "
         "| wall/conic | Vf m/s | dr m | dlon deg | dlat deg | dV m/s | dgamma deg | dpsi deg "
