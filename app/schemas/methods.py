@@ -179,9 +179,10 @@ class FohPtrOptions(ScpRunOptions):
     )
     intersample_constraints: bool = Field(
         True,
-        description="Also impose the linearized path limits and no-fly zones between the nodes, at "
-        "each interval's worst interior substep of the exact FOH integration (exact_foh only). "
-        "The paper imposes them at the nodes only; see docs/methods/foh-ptr.md.",
+        description="Also impose the linearized path limits and no-fly zones between the nodes: "
+        "one row per interval bounding the smooth maximum over the samples of the exact FOH "
+        "integration (exact_foh only). The paper imposes them at the nodes only; see "
+        "docs/methods/foh-ptr.md.",
     )
     interval_min_s: float = Field(
         10.0, gt=0, description="Shortest interval of the adaptive grid (Delta_min), s."
