@@ -136,7 +136,6 @@ class CvxpyBackend:
         solve_time_s = float(solve_time) if solve_time is not None else wall
         iterations = getattr(stats, "num_iters", None)
         return ConicSolution(
-            y=self._multipliers(model, problem) if status.usable else None,
             x=np.asarray(x.value, dtype=np.float64) if status.usable else None,
             status=status,
             raw_status=raw_status,
@@ -145,4 +144,5 @@ class CvxpyBackend:
             iterations=int(iterations) if iterations is not None else 0,
             setup_time_s=max(wall - solve_time_s, 0.0),
             solver=self.name,
+            y=self._multipliers(model, problem) if status.usable else None,
         )

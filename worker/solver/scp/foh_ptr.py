@@ -2,9 +2,11 @@
 
 Loop: discretize the bank-state dynamics exactly about the reference on its current grid
 (transcription.foh_exact, Theorem 1 / eq. 24; or the trapezoidal rule for comparison), linearize
-the log path limits (eq. 25-26) and the no-fly zones (eq. 27), solve Problem 2 (a QP) with the
-penalized trust region, take its solution as the next reference, and stop when no node, bank
-angle or interval length moved more than its tolerance and the objective has settled.
+the log path limits (eq. 25-26) and the no-fly zones (eq. 27), at the nodes and between them,
+solve Problem 2 (a QP) with the penalized trust region and, by default, the Lagrangian curvature
+of the interval maps (an SQP step; transcription.foh_hessian), take its solution as the next
+reference, and stop when no node, bank angle or interval length moved more than its tolerance
+and the objective has settled.
 """
 
 from __future__ import annotations
@@ -316,9 +318,11 @@ def run_foh_ptr(
 
     Each iteration solves one subproblem about the current reference; its solution becomes the next
     reference, whose discretization also gives the step's defect (nodes minus their propagation).
-    The defect adapts the trust weight w_tr (paper 002 keeps it fixed), and convergence is declared
-    only when the step was small, its defect is within the stop tolerance and w_tr is not above its
-    initial value (a step kept small by a heavy trust weight is not a converged one).
+    The defect adapts the trust weight w_tr (paper 002 keeps it fixed), a step that swings back
+    grows it, and convergence is declared only when the step was small, its defect is within the
+    stop tolerance and w_tr is not above its initial value (a step kept small by a heavy trust
+    weight is not a converged one). The subproblem's multipliers of the dynamics rows feed the
+    next iteration's curvature term.
     """
     start = time.perf_counter()
     if problem.final_time is None:
