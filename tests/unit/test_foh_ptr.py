@@ -146,3 +146,13 @@ def test_active_zone_is_respected_between_nodes() -> None:
     assert result["status"] == "succeeded", result.get("failure")
     (zone,) = result["verification"]["no_fly_zones"]
     assert zone["min_clearance_deg"] >= -0.05
+
+
+def test_a_guess_that_reaches_the_ground_fails_the_job_with_the_reason() -> None:
+    """A constant bank of -40 deg spirals down before 1600 s: the method cannot start, which is a
+    failed job naming the option, not an internal error."""
+    result = solve_problem(_doc(initial_bank_deg=-40.0))
+    assert result["status"] == "failed"
+    assert result["failure"]["code"] == "initial_guess"
+    assert "method.initial_bank_deg" in result["failure"]["message"]
+    assert result["history"] == []

@@ -36,7 +36,7 @@ from worker.solver.transcription.foh_subproblem import (
     SubproblemData,
     TerminalRow,
 )
-from worker.solver.transcription.time_grid import initial_reference
+from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
 from worker.solver.transcription.time_trapezoid import trapezoid_maps
 from worker.solver.verification import OptimizedTrajectory
 
@@ -330,7 +330,11 @@ def run_foh_ptr(
     sc = problem.scales
     nodes = options.nodes
     scale = state_scale(problem)
-    ref = initial_reference(problem, nodes, options.initial_bank_deg)
+    try:
+        ref = initial_reference(problem, nodes, options.initial_bank_deg)
+    except InitialGuessError as exc:  # the method cannot start: a failed job, not an error
+        empty = np.zeros(0)
+        return FohOutcome("failed", np.zeros((0, NZ)), empty, empty, [], "initial_guess", str(exc))
     z, w, s = ref.z, ref.w, ref.s
     adaptive = options.grid == "adaptive"
     grid = (

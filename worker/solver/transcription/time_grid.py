@@ -24,6 +24,10 @@ SWEEP_DEG = np.arange(-60.0, 61.0, 10.0)
 MISS_UNIT = np.array([5e3, 5.0, 5.0, 500.0, 5.0, 5.0])
 
 
+class InitialGuessError(ValueError):
+    """No constant-bank propagation of the requested kind stays above the ground."""
+
+
 @dataclass
 class Reference:
     """Nodes (K, 7), bank rates (K,) and interval lengths (N,), nondimensional."""
@@ -110,8 +114,13 @@ def initial_reference(
     score = _miss(problem, z[:, -1])
     best = int(np.argmin(score))
     if not np.isfinite(score[best]):
-        raise ValueError(
-            "no constant-bank propagation stays above the ground for the whole flight time; "
-            "give method.initial_bank_deg"
+        if candidates.size == 1:
+            raise InitialGuessError(
+                f"the propagation under a constant bank of {candidates[0]:g} deg reaches the "
+                "ground before the final time; choose another method.initial_bank_deg"
+            )
+        raise InitialGuessError(
+            "no constant-bank propagation of the sweep stays above the ground for the whole "
+            "flight time; give method.initial_bank_deg"
         )
     return Reference(z=z[best], w=np.zeros(nodes), s=s, bank_deg=float(candidates[best]))
