@@ -10,6 +10,7 @@ around the reference's closest approach, so the nodes cluster there and not ever
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +65,12 @@ def zone_distance(lat: Array, lon: Array, zone: CircleZone) -> ZoneRows:
     if zone.metric == "lat_lon":
         return lat_lon_distance(lat, lon, zone)
     return central_angle(lat, lon, zone)
+
+
+def longitude_factor(zone: CircleZone) -> float:
+    """Weight of dlon against dlat in the zone's squared distance near its centre: cos(latitude)
+    on the sphere, 1 in the lat_lon metric."""
+    return math.cos(zone.latitude) if zone.metric == "great_circle" else 1.0
 
 
 def penalty_window(clearance: Array, half_width: int) -> Array:

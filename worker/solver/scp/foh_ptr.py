@@ -22,7 +22,12 @@ import numpy as np
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
 from worker.solver.constraints.between_nodes import stack_rows, with_end_points
 from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
-from worker.solver.constraints.no_fly import inner_zone_rows, penalty_window, zone_distance
+from worker.solver.constraints.no_fly import (
+    inner_zone_rows,
+    longitude_factor,
+    penalty_window,
+    zone_distance,
+)
 from worker.solver.dynamics_bank_state import NZ
 from worker.solver.method_result import MethodStatus as ScpStatus
 from worker.solver.problem import STATE_NAMES, EntryProblem
@@ -158,7 +163,7 @@ class _Linearizer:
             and (self.limits or self.zones)
         )
         self.inner_ratio = np.zeros(len(self.limits))
-        self.second_order = bool(options.second_order and options.discretization == "exact_foh")
+        self.second_order = bool(options.second_order)  # the schema allows it with exact_foh only
         self.difference_steps: Array | None = None  # set once the subproblem's scales are known
 
     def maps(self, z: Array, w: Array, s: Array) -> IntervalMaps:
@@ -231,7 +236,7 @@ class _Linearizer:
                 mask = penalty_window(clearance, o.no_fly_zone_window)
                 self.windows.append([int(j) for j in np.flatnonzero(mask)])
                 wz = o.weight_no_fly_zone / zone.radius**2
-                coslat = math.cos(zone.latitude) if zone.metric == "great_circle" else 1.0
+                coslat = longitude_factor(zone)
                 quad[mask, 2] += wz
                 weighted_c[mask, 2] += wz * zone.latitude
                 quad[mask, 1] += wz * coslat**2
