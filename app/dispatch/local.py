@@ -41,6 +41,9 @@ def _warm_up() -> None:
 
     try:
         import worker.solver.api  # noqa: F401
+        from worker.solver.dynamics_compiled import warm_up
+
+        warm_up()  # compiled kernels: built (first run on a machine) or loaded before any job
     except Exception:  # the first real job reports any import problem
         log.debug("solver import failed during warm-up", exc_info=True)
 

@@ -516,6 +516,7 @@ def run_foh_ptr(
             conic_solver=sol.solver,
             conic_solve_s=sol.solve_time_s,
             conic_setup_s=sol.setup_time_s,
+            conic_solver_setup_s=sol.clarabel_setup_s,
             iteration_wall_s=0.0,
             extra={
                 "max_interval_change_s": change_s * sc.time_s,

@@ -23,6 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
+from worker.solver.dynamics_compiled import (
+    compiled_parameters,
+    float_arrays,
+    interval_maps_kernel,
+    propagate_kernel,
+)
 from worker.solver.forces import VehicleForces
 
 Array = np.ndarray
@@ -113,13 +119,23 @@ def interval_maps(
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
     inner: bool = False,
+    *,
+    compiled: bool = True,
 ) -> IntervalMaps:
     """The exact FOH maps of independent intervals: start states ``x0`` (M, 7), end-point bank
     rates ``w0``, ``w1`` (M,) and lengths ``s`` (M,), all integrated at once.
 
     ``foh_exact`` calls it with consecutive nodes; the Lagrangian Hessian (``foh_hessian``) with
-    perturbed copies of every interval stacked into one batch.
+    perturbed copies of every interval stacked into one batch. The compiled kernel
+    (``dynamics_compiled``) runs the same steps when the force models have a compiled form and
+    the inputs are real; ``compiled=False`` forces the numpy form.
     """
+    params = _kernel_parameters(forces, omega, compiled, x0, w0, w1, s)
+    if params is not None:
+        keep_inner = inner and substeps > 1
+        xa, wa, wb, sa = float_arrays(x0, w0, w1, s)
+        aug, kept = interval_maps_kernel(xa, wa, wb, sa, params, substeps, keep_inner)
+        return _unpack(aug, kept if keep_inner else None)
     n = s.size
     state = np.zeros((n, NZ, NZ + 4))
     state[:, :, 0] = x0
@@ -139,15 +155,30 @@ def interval_maps(
 
     keep: list[Array] | None = [] if inner and substeps > 1 else None
     state = _rk4_unit_interval(rhs, state, substeps, keep)
+    return _unpack(state, np.stack(keep, axis=1) if keep else None)
+
+
+def _kernel_parameters(
+    forces: VehicleForces, omega: float, compiled: bool, *arrays: Array
+) -> Array | None:
+    """The compiled kernels' parameters, or None to take the numpy form (not asked for, a model
+    without a compiled form, or complex input such as a complex-step test's)."""
+    if not compiled or any(np.iscomplexobj(a) for a in arrays):
+        return None
+    return compiled_parameters(forces, omega)
+
+
+def _unpack(state: Array, kept: Array | None) -> IntervalMaps:
+    """IntervalMaps from the integrated [x | Phi | B- | B+ | S] (N, 7, 11) and, when kept, the
+    interior substeps (N, J, 7, 11)."""
     samples = None
-    if keep:
-        y = np.stack(keep, axis=1)  # (N, J, 7, 11)
+    if kept is not None:
         samples = InnerSamples(
-            x=y[..., 0],
-            Phi=y[..., 1 : NZ + 1],
-            Bm=y[..., NZ + 1],
-            Bp=y[..., NZ + 2],
-            S=y[..., NZ + 3],
+            x=kept[..., 0],
+            Phi=kept[..., 1 : NZ + 1],
+            Bm=kept[..., NZ + 1],
+            Bp=kept[..., NZ + 2],
+            S=kept[..., NZ + 3],
         )
     return IntervalMaps(
         Phi=state[:, :, 1 : NZ + 1].copy(),
@@ -166,12 +197,18 @@ def propagate_nodes(
     forces: VehicleForces,
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
+    *,
+    compiled: bool = True,
 ) -> Array:
     """End states of every interval propagated from its own node: the values of ``foh_exact``.
 
     Same RK4 steps as ``foh_exact`` without the sensitivities (cheaper: no Jacobians).
     """
     w0, w1 = w[:-1], w[1:]
+    params = _kernel_parameters(forces, omega, compiled, z, w, s)
+    if params is not None:
+        xa, wa, wb, sa = float_arrays(z[:-1], w0, w1, s)
+        return propagate_kernel(xa, wa, wb, sa, params, substeps, False)
     x = np.array(z[:-1], dtype=float)
 
     def rhs(tau: float, x: Array) -> Array:

@@ -15,6 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from worker.solver.dynamics_bank_state import NZ
+from worker.solver.dynamics_compiled import (
+    compiled_parameters,
+    float_arrays,
+    lagrangian_hessian_kernel,
+)
 from worker.solver.forces import VehicleForces
 from worker.solver.transcription.foh_exact import IntervalMaps, interval_maps
 
@@ -39,6 +44,8 @@ def lagrangian_hessian(
     steps: Array,
     substeps: int,
     with_interval: bool,
+    *,
+    compiled: bool = True,
 ) -> Array | None:
     """Hessian blocks (N, nb, nb) of sum_k weights_k . Phi_k(v_k) in the interval variables.
 
@@ -49,6 +56,11 @@ def lagrangian_hessian(
     """
     n = s.size
     nb = NZ + 3 if with_interval else NZ + 2
+    params = compiled_parameters(forces, omega) if compiled else None
+    if params is not None:  # the same differences, of adjoint gradients (dynamics_compiled)
+        xa, wa, wb, sa, la, ha = float_arrays(z[:-1], w[:-1], w[1:], s, weights, steps)
+        hess = lagrangian_hessian_kernel(xa, wa, wb, sa, la, ha, nb, params, substeps)
+        return hess if bool(np.all(np.isfinite(hess))) else None
     copies = nb + 1  # the unperturbed intervals, then one perturbed copy per variable
     x0 = np.tile(z[:-1], (copies, 1))
     w0 = np.tile(w[:-1], copies)
@@ -65,7 +77,8 @@ def lagrangian_hessian(
         else:
             ss[block] += steps[j]
     with np.errstate(all="ignore"):
-        jac = _jacobian(interval_maps(x0, w0, w1, ss, forces, omega, substeps), with_interval)
+        maps = interval_maps(x0, w0, w1, ss, forces, omega, substeps, compiled=False)
+        jac = _jacobian(maps, with_interval)
         jac = jac.reshape(copies, n, NZ, nb)
         # column j: d/dv_j of J_k' weights_k (the gradient of weights . Phi_k)
         grad = np.einsum("cnij,ni->cnj", jac, weights)
@@ -81,4 +94,4 @@ def convexify(blocks: Array, floor: float = 0.0) -> Array:
     0): the nearest convex model of each block in the Frobenius norm (Higham 1988)."""
     lam, vec = np.linalg.eigh(blocks)
     lam = np.maximum(lam, floor)
-    return np.einsum("kij,kj,klj->kil", vec, lam, vec)
+    return np.matmul(vec * lam[:, None, :], np.transpose(vec, (0, 2, 1)))
