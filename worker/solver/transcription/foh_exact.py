@@ -9,9 +9,10 @@ deviation dynamics are discretized exactly (eq. 17-24) by integrating alongside 
     dB+/dtau  = A B+ + tau B,        B+(0) = 0,
     dS/dtau   = A S + f,             S(0) = 0,
 
-the inverse-free form of Theorem 1 (eq. 19), so no STM inverse is formed. Every interval is
-integrated at once: the stacked (N, 7, 11) system [x | Phi | B- | B+ | S] advances by one
-vectorized classical Runge-Kutta step per substep. The result gives the stitched subproblem
+the inverse-free form of Theorem 1 (eq. 19), so no STM inverse is formed. The (N, 7, 11) system
+[x | Phi | B- | B+ | S] advances by classical Runge-Kutta steps: in a compiled loop over the
+intervals (``dynamics_compiled``) when the force models have a compiled form, else vectorized
+over all intervals at once in numpy. The result gives the stitched subproblem
 dynamics dz_{k+1} = Phi_k dz_k + B-_k dw_k + B+_k dw_{k+1} + S_k ds_k + (x_prop_{k+1} - z_{k+1}).
 """
 
