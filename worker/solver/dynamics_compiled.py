@@ -465,12 +465,19 @@ def lagrangian_hessian_kernel(
     return hess
 
 
+_warmed = False
+
+
 def warm_up() -> float:
     """Compile every kernel (or load it from numba's on-disk cache) on a tiny case; seconds taken.
 
     The first compilation on a machine takes about 20 s; afterwards loading takes well under one.
-    Worker processes call this before taking jobs, so a job's time limit never pays for it.
+    Worker processes call this before taking jobs, so a job's time limit never pays for it; once
+    the kernels are loaded in this process it returns at once.
     """
+    global _warmed
+    if _warmed:
+        return 0.0
     start = time.perf_counter()
     head = [6.378e6, 7.9e3, 1.2e4, 1.225, 7.2e3, 0.06, 1.0, 40.0, 4.57e3, 1.8e-6, 1.0, 2.0, 2.0]
     params = np.array([*head, 0.0, 0.02, 0.08, 0.9])  # CL and CD(CL), two coefficients each
@@ -480,6 +487,7 @@ def warm_up() -> float:
     interval_maps_kernel(x0, w, w, s, params, 2, True)
     propagate_kernel(x0, w, w, s, params, 2, True)
     lagrangian_hessian_kernel(x0, w, w, s, x0.copy(), np.full(NZ + 3, 1e-5), NZ + 3, params, 2)
+    _warmed = True
     return time.perf_counter() - start
 
 

@@ -331,7 +331,7 @@ def run_foh_ptr(
     next iteration's curvature term.
     """
     if compiled_parameters(problem.forces, problem.omega) is not None:
-        warm_up()  # compile or load the kernels before the clock starts (no-op once loaded)
+        warm_up()  # compile or load the kernels before the clock starts (at once when loaded)
     start = time.perf_counter()
     if problem.final_time is None:
         raise ValueError("foh-ptr needs a fixed final time")
