@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from worker.solver.constraints.between_nodes import smooth_max_rows, with_end_points
-from worker.solver.transcription.foh_exact import InnerSamples, IntervalMaps
+from worker.solver.constraints.between_nodes import smooth_max_rows
+from worker.solver.transcription.foh_exact import IntervalSamples
 
 N, J, M, NZ = 3, 6, 2, 7
 
 
-def _samples(rng: np.random.Generator) -> InnerSamples:
-    return InnerSamples(
+def _samples(rng: np.random.Generator) -> IntervalSamples:
+    return IntervalSamples.from_parts(
         x=rng.normal(size=(N, J, NZ)),
         Phi=rng.normal(size=(N, J, NZ, NZ)),
         Bm=rng.normal(size=(N, J, NZ)),
@@ -83,25 +83,3 @@ def test_narrow_width_gives_the_worst_sample_row() -> None:
             j = worst[n, m]
             assert np.allclose(rows.c_z[n, m], grad[n, j, m] @ samples.Phi[n, j])
             assert np.isclose(rows.g[n, m], g[n, j, m])
-
-
-def test_end_points_are_the_node_and_the_propagated_end() -> None:
-    rng = np.random.default_rng(8)
-    inner = _samples(rng)
-    maps = IntervalMaps(
-        Phi=rng.normal(size=(N, NZ, NZ)),
-        Bm=rng.normal(size=(N, NZ)),
-        Bp=rng.normal(size=(N, NZ)),
-        S=rng.normal(size=(N, NZ)),
-        x_prop=rng.normal(size=(N, NZ)),
-        inner=inner,
-    )
-    z = rng.normal(size=(N + 1, NZ))
-    both = with_end_points(z, maps)
-    assert both.x.shape == (N, J + 2, NZ)
-    assert np.array_equal(both.x[:, 0], z[:-1])
-    assert np.array_equal(both.Phi[:, 0], np.broadcast_to(np.eye(NZ), (N, NZ, NZ)))
-    assert not np.any(both.Bm[:, 0]) and not np.any(both.Bp[:, 0]) and not np.any(both.S[:, 0])
-    assert np.array_equal(both.x[:, -1], maps.x_prop)
-    assert np.array_equal(both.Phi[:, -1], maps.Phi)
-    assert np.array_equal(both.x[:, 1:-1], inner.x)

@@ -101,15 +101,15 @@ def test_maps_match_finite_differences(problem: EntryProblem) -> None:
 
 
 def test_inner_samples_match_propagation_and_finite_differences(problem: EntryProblem) -> None:
-    """The interior substeps kept for the between-node path rows: the state is the propagation
+    """The substeps kept for the between-node path rows: the state is the propagation
     from the node (DOP853, as above) and its maps are the derivatives of that state (central
     differences, same step and tolerances as the end-of-interval maps)."""
     z, w, s = _reference(problem)
-    maps = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, inner=True)
-    inner = maps.inner
-    assert inner is not None and inner.x.shape == (s.size, 7, NZ)
-    k, j = 4, 2  # interval 4, tau = 3/8
-    tau = (j + 1) / 8
+    maps = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, samples=True)
+    samples = maps.samples
+    assert samples is not None and samples.x.shape == (s.size, 9, NZ)
+    k, j = 4, 3  # interval 4, tau = 3/8
+    tau = j / 8
 
     def rhs(t: float, x: np.ndarray) -> np.ndarray:
         wk = np.array([(1 - t) * w[k] + t * w[k + 1]])
@@ -118,13 +118,13 @@ def test_inner_samples_match_propagation_and_finite_differences(problem: EntryPr
         ).F[0]
 
     truth = solve_ivp(rhs, (0.0, tau), z[k], method="DOP853", rtol=1e-11, atol=1e-13).y[:, -1]
-    assert abs(truth[0] - inner.x[k, j, 0]) * problem.scales.radius_m < 2.0
-    assert math.degrees(float(np.max(np.abs(truth - inner.x[k, j])[[1, 2, 4, 5, 6]]))) < 5e-3
+    assert abs(truth[0] - samples.x[k, j, 0]) * problem.scales.radius_m < 2.0
+    assert math.degrees(float(np.max(np.abs(truth - samples.x[k, j])[[1, 2, 4, 5, 6]]))) < 5e-3
 
     h = 1e-6
 
     def state(z: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
-        out = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, inner=True).inner
+        out = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, samples=True).samples
         assert out is not None
         return out.x[k, j]
 
@@ -133,17 +133,17 @@ def test_inner_samples_match_propagation_and_finite_differences(problem: EntryPr
         return (state(*make(h)) - state(*make(-h))) / (2 * h)
 
     unit_w = np.arange(w.size)
-    assert np.allclose(diff(lambda e: (z, w + e * (unit_w == k), s)), inner.Bm[k, j], 1e-5, 1e-7)
+    assert np.allclose(diff(lambda e: (z, w + e * (unit_w == k), s)), samples.Bm[k, j], 1e-5, 1e-7)
     assert np.allclose(
-        diff(lambda e: (z, w + e * (unit_w == k + 1), s)), inner.Bp[k, j], 1e-5, 1e-7
+        diff(lambda e: (z, w + e * (unit_w == k + 1), s)), samples.Bp[k, j], 1e-5, 1e-7
     )
     ds = diff(lambda e: (z, w, s + e * (np.arange(s.size) == k)))
-    assert np.allclose(ds, inner.S[k, j], rtol=1e-5, atol=1e-6)
+    assert np.allclose(ds, samples.S[k, j], rtol=1e-5, atol=1e-6)
     for col in range(NZ):
         e_c = np.zeros_like(z)
         e_c[k, col] = 1.0
         d_col = diff(lambda e, e_c=e_c: (z + e * e_c, w, s))
-        assert np.allclose(d_col, inner.Phi[k, j][:, col], rtol=1e-4, atol=1e-5)
+        assert np.allclose(d_col, samples.Phi[k, j][:, col], rtol=1e-4, atol=1e-5)
 
 
 def test_bank_state_jacobians_complex_step(problem: EntryProblem) -> None:
@@ -178,3 +178,18 @@ def test_bank_state_jacobians_complex_step(problem: EntryProblem) -> None:
     sc = s.astype(complex) + 1j * step
     num_s = bank_state_dynamics(z, w, problem.forces, problem.omega, sc, jacobians=False)
     assert np.allclose(d.S, num_s.F.imag / step, rtol=RTOL, atol=1e-14)
+
+
+def test_samples_end_at_the_node_and_the_propagated_end(problem: EntryProblem) -> None:
+    """Sample 0 of every interval is its node with identity maps, the last is the interval's own
+    end (x_prop and its maps): the between-node rows then cover the nodes too."""
+    z, w, s = _reference(problem)
+    maps = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, samples=True)
+    both = maps.samples
+    assert both is not None and both.x.shape == (s.size, 9, NZ)
+    assert np.array_equal(both.x[:, 0], z[:-1])
+    assert np.array_equal(both.Phi[:, 0], np.broadcast_to(np.eye(NZ), (s.size, NZ, NZ)))
+    assert not np.any(both.Bm[:, 0]) and not np.any(both.Bp[:, 0]) and not np.any(both.S[:, 0])
+    for name in ("Phi", "Bm", "Bp", "S"):
+        assert np.array_equal(getattr(both, name)[:, -1], getattr(maps, name))
+    assert np.array_equal(both.x[:, -1], maps.x_prop)

@@ -25,6 +25,7 @@ Array = np.ndarray
 
 NZ = 7  # r, theta, phi, V, gamma, psi, sigma (dynamics_bank_state.NZ)
 NAUG = NZ + 4  # [x | Phi (7) | B- | B+ | S] columns of the augmented FOH system (foh_exact)
+_LONGITUDE = 1  # index of theta in the state: absent from every rate (paper 000 eq. 1)
 
 # Layout of the parameter vector
 _R0, _VS, _KB, _RHO0, _HS, _OMEGA, _ALPHA_MODE, _ALPHA0, _VBREAK, _KSLOPE, _CD_OF_CL = range(11)
@@ -110,28 +111,31 @@ def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool
     u1, u2 = math.cos(sig), math.sin(sig)
     sg, cg, sp, cp = math.sin(ga), math.cos(ga), math.sin(ps), math.cos(ps)
     sf, cf = math.sin(ph), math.cos(ph)
-    tf = sf / cf
-    tg = sg / cg
+    # reciprocals once: a division costs several multiplications
+    ir, iv, icg, icf = 1.0 / r, 1.0 / v, 1.0 / cg, 1.0 / cf
+    ir2 = ir * ir
+    ivcg = iv * icg
+    irc = ir * icf
+    tf = sf * icf
+    tg = sg * icg
     om = p[_OMEGA]
     w2 = om * om
-    r2 = r * r
     vcg = v * cg
     vsg = v * sg
-    rcf = r * cf
     vcg_sp = vcg * sp
     lu1 = lift * u1
     lu2 = lift * u2
-    f_th = vcg_sp / rcf
-    f_ph = vcg * cp / r
-    f_v = -drag - sg / r2
-    f_ga = lu1 / v + (v - 1.0 / (r * v)) * cg / r
-    f_ps = lu2 / vcg + vcg_sp * tf / r
+    f_th = vcg_sp * irc
+    f_ph = vcg * cp * ir
+    f_v = -drag - sg * ir2
+    f_ga = lu1 * iv + (v - ir * iv) * cg * ir
+    f_ps = lu2 * ivcg + vcg_sp * tf * ir
     wv = sg * cf - cg * sf * cp
     gg = cg * cf + sg * cp * sf
-    rot2 = w2 * r * sp * sf * cf / vcg
+    rot2 = w2 * r * sp * sf * cf * ivcg
     if om != 0.0:
         f_v += w2 * r * cf * wv
-        f_ga += 2.0 * om * cf * sp + w2 * r * cf * gg / v
+        f_ga += 2.0 * om * cf * sp + w2 * r * cf * gg * iv
         f_ps += -2.0 * om * (tg * cp * cf - sf) + rot2
     f[0] = vsg
     f[1] = f_th
@@ -148,45 +152,46 @@ def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool
     lift_v = qk_v * cl + qk * (dcl * alpha_v)
     drag_r = qk_r * cd
     drag_v = qk_v * cd + qk * (dcd * alpha_v)
-    r3 = r2 * r
+    ir3 = ir2 * ir
+    iv2 = iv * iv
     a[:, :] = 0.0
     a[0, 3] = sg
     a[0, 4] = vcg
-    a[1, 0] = -f_th / r
+    a[1, 0] = -f_th * ir
     a[1, 2] = f_th * tf
-    a[1, 3] = cg * sp / rcf
-    a[1, 4] = -vsg * sp / rcf
-    a[1, 5] = vcg * cp / rcf
-    a[2, 0] = -f_ph / r
-    a[2, 3] = cg * cp / r
-    a[2, 4] = -vsg * cp / r
-    a[2, 5] = -vcg_sp / r
-    a_vr = -drag_r + 2.0 * sg / r3
+    a[1, 3] = cg * sp * irc
+    a[1, 4] = -vsg * sp * irc
+    a[1, 5] = vcg * cp * irc
+    a[2, 0] = -f_ph * ir
+    a[2, 3] = cg * cp * ir
+    a[2, 4] = -vsg * cp * ir
+    a[2, 5] = -vcg_sp * ir
+    a_vr = -drag_r + 2.0 * sg * ir3
     a[3, 3] = -drag_v
-    a_vga = -cg / r2
-    a_gar = lift_r * u1 / v - vcg / r2 + 2.0 * cg / (r3 * v)
-    a_gav = lift_v * u1 / v - lu1 / (v * v) + cg / r + cg / (r2 * v * v)
-    a_gaga = -vsg / r + sg / (r2 * v)
-    a_psr = lift_r * u2 / vcg - vcg_sp * tf / r2
-    a_psph = vcg_sp / (r * cf * cf)
-    a_psv = lift_v * u2 / vcg - lu2 / (v * v * cg) + cg * sp * tf / r
-    a_psga = lu2 * sg / (v * cg * cg) - vsg * sp * tf / r
-    a_psps = vcg * cp * tf / r
+    a_vga = -cg * ir2
+    a_gar = lift_r * u1 * iv - vcg * ir2 + 2.0 * cg * ir3 * iv
+    a_gav = lift_v * u1 * iv - lu1 * iv2 + cg * ir + cg * ir2 * iv2
+    a_gaga = -vsg * ir + sg * ir2 * iv
+    a_psr = lift_r * u2 * ivcg - vcg_sp * tf * ir2
+    a_psph = vcg_sp * irc * icf
+    a_psv = lift_v * u2 * ivcg - lu2 * iv2 * icg + cg * sp * tf * ir
+    a_psga = lu2 * sg * ivcg * icg - vsg * sp * tf * ir
+    a_psps = vcg * cp * tf * ir
     if om != 0.0:
         a_vr += w2 * cf * wv
         a[3, 2] = w2 * r * (-sf * wv + cf * (-sg * sf - cg * cf * cp))
         a_vga += w2 * r * cf * (cg * cf + sg * sf * cp)
         a[3, 5] = w2 * r * cf * cg * sf * sp
-        a_gar += w2 * cf * gg / v
-        a[4, 2] = -2.0 * om * sf * sp + w2 * r / v * (-sf * gg + cf * (-cg * sf + sg * cp * cf))
-        a_gav -= w2 * r * cf * gg / (v * v)
-        a_gaga += w2 * r * cf * (-sg * cf + cg * cp * sf) / v
-        a[4, 5] = 2.0 * om * cf * cp - w2 * r * cf * sg * sp * sf / v
-        a_psr += rot2 / r
-        a_psph += -2.0 * om * (-tg * cp * sf - cf) + w2 * r * sp * (cf * cf - sf * sf) / vcg
-        a_psv -= rot2 / v
-        a_psga += -2.0 * om * cp * cf / (cg * cg) + rot2 * tg
-        a_psps += 2.0 * om * tg * sp * cf + w2 * r * cp * sf * cf / vcg
+        a_gar += w2 * cf * gg * iv
+        a[4, 2] = -2.0 * om * sf * sp + w2 * r * iv * (-sf * gg + cf * (-cg * sf + sg * cp * cf))
+        a_gav -= w2 * r * cf * gg * iv2
+        a_gaga += w2 * r * cf * (-sg * cf + cg * cp * sf) * iv
+        a[4, 5] = 2.0 * om * cf * cp - w2 * r * cf * sg * sp * sf * iv
+        a_psr += rot2 * ir
+        a_psph += -2.0 * om * (-tg * cp * sf - cf) + w2 * r * sp * (cf * cf - sf * sf) * ivcg
+        a_psv -= rot2 * iv
+        a_psga += -2.0 * om * cp * cf * icg * icg + rot2 * tg
+        a_psps += 2.0 * om * tg * sp * cf + w2 * r * cp * sf * cf * ivcg
     a[3, 0] = a_vr
     a[3, 4] = a_vga
     a[4, 0] = a_gar
@@ -197,8 +202,8 @@ def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool
     a[5, 3] = a_psv
     a[5, 4] = a_psga
     a[5, 5] = a_psps
-    a[4, 6] = (lift / v) * -u2  # d f / d sigma = B_u d u / d sigma (dynamics_bank_state)
-    a[5, 6] = (lift / vcg) * u1
+    a[4, 6] = (lift * iv) * -u2  # d f / d sigma = B_u d u / d sigma (dynamics_bank_state)
+    a[5, 6] = (lift * ivcg) * u1
     for i in range(6):
         for j in range(NZ):
             a[i, j] *= s
@@ -245,11 +250,11 @@ def interval_maps_kernel(
     x0: Array, w0: Array, w1: Array, s: Array, p: Array, substeps: int, keep: bool
 ) -> tuple[Array, Array]:
     """The augmented FOH system of every interval after RK4 over tau in [0, 1] (M, 7, 11) and,
-    with ``keep``, after each interior substep (M, substeps - 1, 7, 11); the same steps as
-    ``foh_exact._rk4_unit_interval``."""
+    with ``keep``, at every substep, both ends included (M, substeps + 1, 7, 11); the same steps
+    as ``foh_exact._rk4_unit_interval``."""
     m_count = s.size
     out = np.empty((m_count, NZ, NAUG))
-    inner = np.empty((m_count, max(substeps - 1, 0) if keep else 0, NZ, NAUG))
+    kept = np.empty((m_count, substeps + 1 if keep else 0, NZ, NAUG))
     f = np.empty((2, NZ))
     a = np.empty((NZ, NZ))
     k1 = np.empty((NZ, NAUG))
@@ -264,6 +269,8 @@ def interval_maps_kernel(
         for i in range(NZ):
             y[i, 0] = x0[m, i]
             y[i, 1 + i] = 1.0
+        if keep:
+            kept[m, 0] = y
         tau = 0.0
         for step in range(substeps):
             _augmented_rhs(tau, y, w0[m], w1[m], s[m], p, f, a, k1)
@@ -278,10 +285,10 @@ def interval_maps_kernel(
                 for j in range(NAUG):
                     y[i, j] = y[i, j] + c * (k1[i, j] + 2.0 * k2[i, j] + 2.0 * k3[i, j] + k4[i, j])
             tau += h
-            if keep and step < substeps - 1:
-                inner[m, step] = y
+            if keep:
+                kept[m, step + 1] = y
         out[m] = y
-    return out, inner
+    return out, kept
 
 
 @njit(cache=True, error_model="numpy")
@@ -444,6 +451,10 @@ def lagrangian_hessian_kernel(
     for n in range(n_int):
         _end_gradient(x0[n], w0[n], w1[n], s[n], weights[n], p, substeps, a_st, f_st, work, base)
         for j in range(nb):
+            if j == _LONGITUDE:  # no rate depends on the longitude: its row and column are zero
+                for i in range(nb):
+                    hess[n, i, j] = 0.0
+                continue
             xp[:] = x0[n]
             wa, wb, sn = w0[n], w1[n], s[n]
             if j < NZ:

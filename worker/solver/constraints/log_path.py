@@ -18,16 +18,16 @@ from worker.solver.constraints.between_nodes import smooth_max_rows
 from worker.solver.forces import ForceTerms
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
-from worker.solver.transcription.foh_exact import InnerSamples
+from worker.solver.transcription.foh_exact import IntervalSamples
 from worker.solver.transcription.foh_subproblem import InnerRows
 
 Array = np.ndarray
 
 LIMIT_NAMES = ("heat_rate", "dynamic_pressure", "load_factor")
 SMOOTH_WIDTH = 0.002
-"""Smoothing width of the between-node rows in ln(p / p_max): with the default 7 interior samples
-a row is conservative by at most 0.002 ln 7 = 0.4 % of the limit, well inside the 1 % to which
-path limits are verified."""
+"""Smoothing width of the between-node rows in ln(p / p_max): with the default 9 samples per
+interval (8 substeps, both ends included) a row is conservative by at most 0.002 ln 9 = 0.44 % of
+the limit, well inside the 1 % to which path limits are verified."""
 
 
 @dataclass
@@ -91,9 +91,9 @@ def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> 
     return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v)
 
 
-def inner_path_rows(problem: EntryProblem, samples: InnerSamples) -> InnerRows:
+def inner_path_rows(problem: EntryProblem, samples: IntervalSamples) -> InnerRows:
     """The log path limits between the nodes: per interval and limit, the smooth maximum of the
-    interior samples (``between_nodes.smooth_max_rows``, width ``SMOOTH_WIDTH``). Node rows alone
+    samples (``between_nodes.smooth_max_rows``, width ``SMOOTH_WIDTH``). Node rows alone
     let a sparse grid put a heating peak between two nodes; these close that gap."""
     n, j = samples.x.shape[:2]
     r = samples.x[..., 0].ravel()

@@ -17,12 +17,13 @@ import numpy as np
 
 from worker.solver.constraints.between_nodes import smooth_max_rows
 from worker.solver.problem import CircleZone
-from worker.solver.transcription.foh_exact import InnerSamples
+from worker.solver.transcription.foh_exact import IntervalSamples
 from worker.solver.transcription.foh_subproblem import InnerRows
 
 SMOOTH_WIDTH_RAD = float(np.radians(0.005))
 """Smoothing width of the between-node zone rows (central angle, rad): conservative by at most
-0.005 deg x ln 7 = 0.01 deg with 7 interior samples, a fifth of the 0.05 deg intrusion bound."""
+0.005 deg x ln 9 = 0.011 deg with the default 9 samples per interval (8 substeps, both ends
+included), a fifth of the 0.05 deg intrusion bound."""
 
 Array = np.ndarray
 
@@ -83,10 +84,10 @@ def penalty_window(clearance: Array, half_width: int) -> Array:
 
 
 def inner_zone_rows(
-    zones: list[CircleZone], samples: InnerSamples, margin: float = 0.0
+    zones: list[CircleZone], samples: IntervalSamples, margin: float = 0.0
 ) -> InnerRows:
     """Zone exclusions between the nodes: R + margin - c <= 0 as the smooth maximum over each
-    interval's interior samples (width ``SMOOTH_WIDTH_RAD``), linearized through the exact FOH
+    interval's samples (width ``SMOOTH_WIDTH_RAD``), linearized through the exact FOH
     maps (``between_nodes``), so a sparse grid cannot step over a zone between two nodes."""
     n, j, nz = samples.x.shape
     lat = samples.x[..., 2].ravel()

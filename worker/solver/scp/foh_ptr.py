@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
-from worker.solver.constraints.between_nodes import stack_rows, with_end_points
+from worker.solver.constraints.between_nodes import stack_rows
 from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
 from worker.solver.constraints.no_fly import (
     inner_zone_rows,
@@ -171,38 +171,43 @@ class _Linearizer:
         p, o = self.problem, self.options
         if o.discretization == "trapezoid":
             return trapezoid_maps(z, w, s, p.forces, p.omega)
-        return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, inner=self.inner_on)
+        return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, samples=self.inner_on)
 
-    def data(
-        self, z: Array, w: Array, s: Array, multipliers: Array | None = None
-    ) -> tuple[SubproblemData, Array]:
-        """Subproblem data about (z, w, s) and the path-limit ratios at the nodes (K, m).
+    def curvature(self, data: SubproblemData, multipliers: Array | None) -> Array | None:
+        """The Lagrangian curvature of the interval maps about ``data``'s reference, or None.
 
         ``multipliers`` (N, 7): the last subproblem's multipliers of the dynamics rows, in
-        nondimensional state units; with them (and ``second_order``) the data carry the
-        Lagrangian curvature of the interval maps.
+        nondimensional state units. None without them, without ``second_order``, or when a
+        perturbed integration is not finite (the step is then first-order). Computed only for a
+        reference that gets a subproblem: not for the one that ends the loop.
         """
+        if multipliers is None or not self.second_order or self.difference_steps is None:
+            return None
+        p = self.problem
+        return lagrangian_hessian(
+            data.z,
+            data.w,
+            data.s,
+            p.forces,
+            p.omega,
+            -multipliers,  # the rows read x_{k+1} - Phi_k(v_k): Phi_k enters with a minus
+            self.difference_steps,
+            self.options.second_order_substeps,
+            with_interval=self.difference_steps.size == NZ + 3,
+        )
+
+    def data(self, z: Array, w: Array, s: Array) -> tuple[SubproblemData, Array]:
+        """Subproblem data about (z, w, s), without the curvature (``curvature``), and the
+        path-limit ratios at the nodes (K, m)."""
         p, o = self.problem, self.options
         k = z.shape[0]
         mp = self.maps(z, w, s)
-        hessian = None
-        if multipliers is not None and self.second_order and self.difference_steps is not None:
-            hessian = lagrangian_hessian(
-                z,
-                w,
-                s,
-                p.forces,
-                p.omega,
-                -multipliers,  # the rows read x_{k+1} - Phi_k(v_k): Phi_k enters with a minus
-                self.difference_steps,
-                o.second_order_substeps,
-                with_interval=self.difference_steps.size == NZ + 3,
-            )
         ft = p.forces.terms(z[:, 0], z[:, 3])
         rows = log_path_rows(p, z[:, 0], z[:, 3], ft)
         inner = None
         if self.inner_on:
-            samples = with_end_points(z, mp)
+            samples = mp.samples
+            assert samples is not None
             parts = []
             if self.limits:
                 parts.append(inner_path_rows(p, samples))
@@ -264,7 +269,6 @@ class _Linearizer:
             quad_z=quad,
             quad_center=quad_c,
             inner=inner,
-            hessian=hessian,
         )
         return data, rows.ratio
 
@@ -450,6 +454,7 @@ def run_foh_ptr(
         if sub.w_buf > options.weight_virtual_control:
             sub.set_virtual_factor(1.0)
         sub.w_tr = w_tr
+        data.hessian = lin.curvature(data, last_multipliers)
         lin_s = time.perf_counter() - it_start
         limit = (
             remaining
@@ -552,10 +557,10 @@ def run_foh_ptr(
         )
         previous = (z, w, s, last_multipliers)
         z, w, s, last_multipliers = new.z, new.w, new.s, multipliers
-        data, ratio = lin.data(z, w, s, multipliers)  # the next linearization judges this step
+        data, ratio = lin.data(z, w, s)  # the next linearization judges this step
         if not _finite(data):  # reject the step: back to the reference, heavier trust weight
             z, w, s, last_multipliers = previous
-            data, ratio = lin.data(z, w, s, last_multipliers)
+            data, ratio = lin.data(z, w, s)
             w_tr = min(w_tr * options.trust_factor, 1e3)
             record.extra["rejected"] = "the step's propagation left the models' range"
             record.iteration_wall_s = time.perf_counter() - it_start

@@ -51,22 +51,68 @@ class IntervalMaps:
     S: Array  # (N, 7)
     x_prop: Array  # (N, 7): end of interval k propagated from the reference node k
     E: Array | None = None  # (N, 7, 7); None means the identity
-    inner: InnerSamples | None = None  # states and maps inside the intervals (exact FOH only)
+    samples: IntervalSamples | None = None  # every substep of every interval (exact FOH only)
+    stacked: Array | None = None  # (N, 7, 10) [Phi | Bm | Bp | S] when the maps are its views
+
+    @property
+    def jacobian(self) -> Array:
+        """[Phi | B- | B+ | S] (N, 7, 10): the interval's end state differentiated in its
+        variables (z_k, w_k, w_{k+1}, s_k)."""
+        if self.stacked is not None:
+            return self.stacked
+        parts = [self.Phi, self.Bm[:, :, None], self.Bp[:, :, None], self.S[:, :, None]]
+        return np.concatenate(parts, axis=2)
 
 
 @dataclass
-class InnerSamples:
-    """The reference and its deviation maps at the interior substeps tau_j = j / substeps.
+class IntervalSamples:
+    """The reference and its deviation maps at the substeps tau_j = j / substeps, j = 0..substeps,
+    of every interval: both ends included, so sample 0 is the node (identity maps) and the last
+    is the propagated end (the interval's own maps).
 
     x(tau_j) = x_bar(tau_j) + Phi_j dz_k + B-_j dw_k + B+_j dw_{k+1} + S_j ds_k to first order,
-    so a path limit can be linearized between the nodes with no extra integration.
+    so a path limit can be linearized between the nodes with no extra integration. One array
+    [x | Phi | B- | B+ | S] (N, J, 7, 11) holds them all; the fields are views of it.
     """
 
-    x: Array  # (N, J, 7)
-    Phi: Array  # (N, J, 7, 7)
-    Bm: Array  # (N, J, 7)
-    Bp: Array  # (N, J, 7)
-    S: Array  # (N, J, 7)
+    augmented: Array  # (N, J, 7, 11)
+
+    @classmethod
+    def from_parts(cls, x: Array, Phi: Array, Bm: Array, Bp: Array, S: Array) -> IntervalSamples:
+        """Samples from separate arrays: x, Bm, Bp, S (N, J, 7) and Phi (N, J, 7, 7)."""
+        parts = [x[..., None], Phi, Bm[..., None], Bp[..., None], S[..., None]]
+        return cls(np.concatenate(parts, axis=-1))
+
+    @property
+    def x(self) -> Array:
+        """States (N, J, 7)."""
+        return self.augmented[..., 0]
+
+    @property
+    def Phi(self) -> Array:
+        """State-transition maps (N, J, 7, 7)."""
+        return self.augmented[..., 1 : NZ + 1]
+
+    @property
+    def Bm(self) -> Array:
+        """Maps of the interval's first bank rate (N, J, 7)."""
+        return self.augmented[..., NZ + 1]
+
+    @property
+    def Bp(self) -> Array:
+        """Maps of the interval's second bank rate (N, J, 7)."""
+        return self.augmented[..., NZ + 2]
+
+    @property
+    def S(self) -> Array:
+        """Maps of the interval length (N, J, 7)."""
+        return self.augmented[..., NZ + 3]
+
+    @property
+    def jacobian(self) -> Array:
+        """[Phi | B- | B+ | S] of every sample (N, J, 7, 10): the state's derivative in the
+        interval's variables (z_k, w_k, w_{k+1}, s_k)."""
+        return self.augmented[..., 1:]
 
 
 def _rk4_unit_interval(
@@ -77,18 +123,18 @@ def _rk4_unit_interval(
 ) -> np.ndarray:
     """Classical RK4 over tau in [0, 1] with ``substeps`` equal steps (all intervals at once).
 
-    With ``keep``, the state after every step but the last is appended to it.
+    With ``keep``, the state after every step is appended to it.
     """
     h = 1.0 / substeps
     tau = 0.0
-    for step in range(substeps):
+    for _ in range(substeps):
         k1 = rhs(tau, y)
         k2 = rhs(tau + 0.5 * h, y + (0.5 * h) * k1)
         k3 = rhs(tau + 0.5 * h, y + (0.5 * h) * k2)
         k4 = rhs(tau + h, y + h * k3)
         y = y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         tau += h
-        if keep is not None and step < substeps - 1:
+        if keep is not None:
             keep.append(y)
     return y
 
@@ -100,15 +146,15 @@ def foh_exact(
     forces: VehicleForces,
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
-    inner: bool = False,
+    samples: bool = False,
 ) -> IntervalMaps:
     """Exact FOH maps about the reference nodes ``z`` (K, 7), bank rates ``w`` (K,), lengths ``s``.
 
     Fixed-step RK4 with ``substeps`` steps in tau on every interval at once (paper 002 Theorem 1
     and eq. 24); the accuracy for a given substep count is measured in the method's docs. With
-    ``inner``, the interior substeps are kept as well (``IntervalMaps.inner``).
+    ``samples``, every substep is kept as well (``IntervalMaps.samples``).
     """
-    return interval_maps(z[:-1], w[:-1], w[1:], s, forces, omega, substeps, inner)
+    return interval_maps(z[:-1], w[:-1], w[1:], s, forces, omega, substeps, samples)
 
 
 def interval_maps(
@@ -119,7 +165,7 @@ def interval_maps(
     forces: VehicleForces,
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
-    inner: bool = False,
+    samples: bool = False,
     *,
     compiled: bool = True,
 ) -> IntervalMaps:
@@ -133,10 +179,9 @@ def interval_maps(
     """
     params = _kernel_parameters(forces, omega, compiled, x0, w0, w1, s)
     if params is not None:
-        keep_inner = inner and substeps > 1
         xa, wa, wb, sa = float_arrays(x0, w0, w1, s)
-        aug, kept = interval_maps_kernel(xa, wa, wb, sa, params, substeps, keep_inner)
-        return _unpack(aug, kept if keep_inner else None)
+        aug, kept = interval_maps_kernel(xa, wa, wb, sa, params, substeps, samples)
+        return _unpack(aug, kept if samples else None)
     n = s.size
     state = np.zeros((n, NZ, NZ + 4))
     state[:, :, 0] = x0
@@ -154,7 +199,7 @@ def interval_maps(
         out[:, :, NZ + 3] += d.S
         return out
 
-    keep: list[Array] | None = [] if inner and substeps > 1 else None
+    keep: list[Array] | None = [state] if samples else None
     state = _rk4_unit_interval(rhs, state, substeps, keep)
     return _unpack(state, np.stack(keep, axis=1) if keep else None)
 
@@ -170,24 +215,17 @@ def _kernel_parameters(
 
 
 def _unpack(state: Array, kept: Array | None) -> IntervalMaps:
-    """IntervalMaps from the integrated [x | Phi | B- | B+ | S] (N, 7, 11) and, when kept, the
-    interior substeps (N, J, 7, 11)."""
-    samples = None
-    if kept is not None:
-        samples = InnerSamples(
-            x=kept[..., 0],
-            Phi=kept[..., 1 : NZ + 1],
-            Bm=kept[..., NZ + 1],
-            Bp=kept[..., NZ + 2],
-            S=kept[..., NZ + 3],
-        )
+    """IntervalMaps from the integrated [x | Phi | B- | B+ | S] (N, 7, 11) and, when kept, every
+    substep (N, J, 7, 11)."""
+    jac = state[:, :, 1:].copy()
     return IntervalMaps(
-        Phi=state[:, :, 1 : NZ + 1].copy(),
-        Bm=state[:, :, NZ + 1].copy(),
-        Bp=state[:, :, NZ + 2].copy(),
-        S=state[:, :, NZ + 3].copy(),
+        Phi=jac[:, :, :NZ],
+        Bm=jac[:, :, NZ],
+        Bp=jac[:, :, NZ + 1],
+        S=jac[:, :, NZ + 2],
         x_prop=state[:, :, 0].copy(),
-        inner=samples,
+        samples=None if kept is None else IntervalSamples(kept),
+        stacked=jac,
     )
 
 

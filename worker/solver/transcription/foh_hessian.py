@@ -28,10 +28,7 @@ Array = np.ndarray
 
 def _jacobian(maps: IntervalMaps, with_interval: bool) -> Array:
     """[Phi | B- | B+ (| S)] of every interval, (M, 7, nb)."""
-    parts = [maps.Phi, maps.Bm[:, :, None], maps.Bp[:, :, None]]
-    if with_interval:
-        parts.append(maps.S[:, :, None])
-    return np.concatenate(parts, axis=2)
+    return maps.jacobian[:, :, : NZ + 3 if with_interval else NZ + 2]
 
 
 def lagrangian_hessian(

@@ -86,16 +86,34 @@ class InnerRows:
 
     Row (k, m): g + c_z . dz_k + c_wm dw_k + c_wp dw_{k+1} + c_s ds_k <= 0: constraint m over
     interval k's samples (the smooth maximum of ``constraints.between_nodes``) carried through
-    the exact FOH deviation maps, in nondimensional units. ``worst`` is the largest sample value
-    itself, for reports.
+    the exact FOH deviation maps, in nondimensional units. ``c`` holds the four coefficients
+    side by side, [c_z | c_wm | c_wp | c_s]; ``worst`` is the largest sample value itself, for
+    reports.
     """
 
     g: Array  # (N, m)
-    c_z: Array  # (N, m, 7)
-    c_wm: Array  # (N, m)
-    c_wp: Array  # (N, m)
-    c_s: Array  # (N, m)
+    c: Array  # (N, m, 10)
     worst: Array  # (N, m)
+
+    @property
+    def c_z(self) -> Array:
+        """Coefficients of dz_k (N, m, 7)."""
+        return self.c[:, :, :NZ]
+
+    @property
+    def c_wm(self) -> Array:
+        """Coefficients of dw_k (N, m)."""
+        return self.c[:, :, NZ]
+
+    @property
+    def c_wp(self) -> Array:
+        """Coefficients of dw_{k+1} (N, m)."""
+        return self.c[:, :, NZ + 1]
+
+    @property
+    def c_s(self) -> Array:
+        """Coefficients of ds_k (N, m)."""
+        return self.c[:, :, NZ + 2]
 
 
 @dataclass
@@ -209,7 +227,7 @@ class FohSubproblem:
         i = np.arange(NZ)[None, :, None]
         j = np.arange(NZ)[None, None, :]
         dyn = (NZ * k + i) + 0 * j
-        add("E", dyn, self.col_z[1:][:, None, :] + 0 * i, 0.0)
+        add("E", dyn, self.col_z[1:][:, None, :] + 0 * i, np.tile(np.eye(NZ).ravel(), N))
         add("Phi", dyn, self.col_z[:-1][:, None, :] + 0 * i, 0.0)
         dyn1 = NZ * np.arange(N)[:, None] + np.arange(NZ)[None, :]
         add("Bm", dyn1, self.col_w[:-1][:, None] + 0 * dyn1, 0.0)
@@ -290,14 +308,51 @@ class FohSubproblem:
             raise AssertionError("the subproblem pattern must not repeat a (row, column) pair")
         self._A_data = self.A_asm.assemble_data(np.concatenate(vals))
         pos = self.A_asm.positions
-        self._slots = {name: pos[sl] for name, sl in self._blocks.items()}
+        slots = {name: pos[sl] for name, sl in self._blocks.items()}
+        self._slots = slots
+        # the values that change, gathered so that each kind is written by one assignment:
+        # dynamics [Phi | B- | B+ (| S)] (N, 7, nb), node path rows (K, m), zone rows (Z, K),
+        # between-node rows (N, m_inner, nb)
+        nb = self.block_cols.shape[1]
+        dyn = [slots["Phi"].reshape(N, NZ, NZ), slots["Bm"].reshape(N, NZ, 1)]
+        dyn.append(slots["Bp"].reshape(N, NZ, 1))
+        if self.adaptive:
+            dyn.append(slots["S"].reshape(N, NZ, 1))
+        self._slot_dyn = np.concatenate(dyn, axis=2)
+        self._slot_path = (
+            [np.stack([slots[f"path_{v}{m}"] for m in range(self.n_limits)], axis=1) for v in "rv"]
+            if self.n_limits
+            else []
+        )
+        self._slot_zone = (
+            [
+                np.stack([slots[f"zone_{v}{zi}"] for zi in range(self.n_zones)])
+                for v in ("lat", "lon")
+            ]
+            if self.n_zones
+            else []
+        )
+        inner = []
+        for m in range(self.n_inner):
+            part = [slots[f"inner_z{m}"].reshape(N, NZ), slots[f"inner_wm{m}"][:, None]]
+            part.append(slots[f"inner_wp{m}"][:, None])
+            if self.adaptive:
+                part.append(slots[f"inner_s{m}"][:, None])
+            inner.append(np.concatenate(part, axis=1))
+        self._slot_inner = np.stack(inner, axis=1) if inner else None
+        inv = 1.0 / Dz
+        self._dyn_scale = -self.block_scale[None, :] * inv[:, None]  # (7, nb): rows / Dz_i
+        self._e_scale = Dz[None, :] * inv[:, None]
+        # The longitude enters no rate (paper 000 eq. 1), so its row and column of every
+        # curvature block are zero: the blocks are convexified and stored without it.
+        self._curved = np.array([j for j in range(nb) if j != TH_])
         diag = np.arange(self.n_quad)
         p_rows, p_cols = [diag], [diag]
-        nb = self.block_cols.shape[1]
-        self._upper = np.triu_indices(nb)
+        self._upper = np.triu_indices(self._curved.size)
         if self.hessian_blocks:  # one upper triangle per interval block; overlaps are summed
-            a = self.block_cols[:, self._upper[0]].ravel()
-            b = self.block_cols[:, self._upper[1]].ravel()
+            curved_cols = self.block_cols[:, self._curved]
+            a = curved_cols[:, self._upper[0]].ravel()
+            b = curved_cols[:, self._upper[1]].ravel()
             p_rows.append(np.minimum(a, b))
             p_cols.append(np.maximum(a, b))
         self.P_asm = SparseAssembler(
@@ -308,32 +363,23 @@ class FohSubproblem:
     # ------------------------------------------------------------------ values
     def build(self, d: SubproblemData) -> ConeProblem:
         """The subproblem linearized about ``d`` (values only; the pattern never changes)."""
-        K, N, Dz, Dw, Ds = self.K, self.N, self.Dz, self.Dw, self.Ds
+        K, N, Dz, Ds = self.K, self.N, self.Dz, self.Ds
         mp = d.maps
         inv = 1.0 / Dz
         data = self._A_data.copy()
-        E = np.broadcast_to(np.eye(NZ), (N, NZ, NZ)) if mp.E is None else mp.E
-        data[self._slots["E"]] = (E * Dz[None, None, :] * inv[None, :, None]).ravel()
-        data[self._slots["Phi"]] = (-mp.Phi * Dz[None, None, :] * inv[None, :, None]).ravel()
-        data[self._slots["Bm"]] = (-mp.Bm * Dw * inv[None, :]).ravel()
-        data[self._slots["Bp"]] = (-mp.Bp * Dw * inv[None, :]).ravel()
-        if self.adaptive:
-            data[self._slots["S"]] = (-mp.S * Ds * inv[None, :]).ravel()
-        for m in range(self.n_limits):
-            data[self._slots[f"path_r{m}"]] = d.path_gr[:, m] * Dz[R_]
-            data[self._slots[f"path_v{m}"]] = d.path_gv[:, m] * Dz[V_]
-        for zi in range(self.n_zones):
-            data[self._slots[f"zone_lat{zi}"]] = -d.zone_clat[zi] * Dz[PH_]
-            data[self._slots[f"zone_lon{zi}"]] = -d.zone_clon[zi] * Dz[TH_]
-        if self.n_inner:
-            inn = d.inner
-            assert inn is not None
-            for m in range(self.n_inner):
-                data[self._slots[f"inner_z{m}"]] = (inn.c_z[:, m, :] * Dz[None, :]).ravel()
-                data[self._slots[f"inner_wm{m}"]] = inn.c_wm[:, m] * Dw
-                data[self._slots[f"inner_wp{m}"]] = inn.c_wp[:, m] * Dw
-                if self.adaptive:
-                    data[self._slots[f"inner_s{m}"]] = inn.c_s[:, m] * Ds
+        nb = self.block_cols.shape[1]
+        if mp.E is not None:  # the identity otherwise, already in the base values
+            data[self._slots["E"]] = (mp.E * self._e_scale).ravel()
+        data[self._slot_dyn] = mp.jacobian[:, :, :nb] * self._dyn_scale
+        if self.n_limits:
+            data[self._slot_path[0]] = d.path_gr * Dz[R_]
+            data[self._slot_path[1]] = d.path_gv * Dz[V_]
+        if self.n_zones:
+            data[self._slot_zone[0]] = -d.zone_clat * Dz[PH_]
+            data[self._slot_zone[1]] = -d.zone_clon * Dz[TH_]
+        if self._slot_inner is not None:
+            assert d.inner is not None
+            data[self._slot_inner] = d.inner.c[:, :, :nb] * self.block_scale
         A = self.A_asm.matrix(data)
 
         b = np.zeros(self.m)
@@ -384,7 +430,9 @@ class FohSubproblem:
         p[K * NZ : K * NZ + K] = 2.0 * self.w_tr
         p[K * NZ + K : self.n_quad] = 2.0 * self.w_tr2
         if self.hessian_blocks and d.hessian is not None:
-            scaled = d.hessian * self.block_scale[None, :, None] * self.block_scale[None, None, :]
+            keep = self._curved
+            scale = self.block_scale[keep]
+            scaled = d.hessian[:, keep[:, None], keep] * scale[:, None] * scale[None, :]
             p[self.n_quad :] = convexify(scaled)[:, self._upper[0], self._upper[1]].ravel()
         q = np.zeros(self.n)
         qz = q[: K * NZ].reshape(K, NZ)
