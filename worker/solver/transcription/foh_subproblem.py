@@ -314,11 +314,11 @@ class FohSubproblem:
         # dynamics [Phi | B- | B+ (| S)] (N, 7, nb), node path rows (K, m), zone rows (Z, K),
         # between-node rows (N, m_inner, nb)
         nb = self.block_cols.shape[1]
-        dyn = [slots["Phi"].reshape(N, NZ, NZ), slots["Bm"].reshape(N, NZ, 1)]
-        dyn.append(slots["Bp"].reshape(N, NZ, 1))
+        dyn_slots = [slots["Phi"].reshape(N, NZ, NZ), slots["Bm"].reshape(N, NZ, 1)]
+        dyn_slots.append(slots["Bp"].reshape(N, NZ, 1))
         if self.adaptive:
-            dyn.append(slots["S"].reshape(N, NZ, 1))
-        self._slot_dyn = np.concatenate(dyn, axis=2)
+            dyn_slots.append(slots["S"].reshape(N, NZ, 1))
+        self._slot_dyn = np.concatenate(dyn_slots, axis=2)
         self._slot_path = (
             [np.stack([slots[f"path_{v}{m}"] for m in range(self.n_limits)], axis=1) for v in "rv"]
             if self.n_limits
