@@ -25,6 +25,11 @@ def _samples(rng: np.random.Generator) -> IntervalSamples:
     )
 
 
+def _dense(grad: np.ndarray) -> dict[int, np.ndarray]:
+    """Gradients (N, J, M, 7) as smooth_max_rows takes them: partials by state index."""
+    return {i: grad[..., i] for i in range(NZ)}
+
+
 def _ks(values: np.ndarray, width: np.ndarray) -> np.ndarray:
     top = np.max(values, axis=1, keepdims=True)
     return top[:, 0] + width * np.log(np.sum(np.exp((values - top) / width), axis=1))
@@ -34,7 +39,7 @@ def test_row_bounds_the_worst_sample_within_its_width() -> None:
     rng = np.random.default_rng(5)
     g = 0.01 * rng.normal(size=(N, J, M))
     width = np.array([0.002, 0.004])
-    rows = smooth_max_rows(g, rng.normal(size=(N, J, M, NZ)), _samples(rng), width)
+    rows = smooth_max_rows(g, _dense(rng.normal(size=(N, J, M, NZ))), _samples(rng), width)
     assert np.array_equal(rows.worst, np.max(g, axis=1))
     assert np.all(rows.g >= rows.worst)
     assert np.all(rows.g <= rows.worst + width * np.log(J) + 1e-15)
@@ -46,7 +51,7 @@ def test_coefficients_are_the_gradient_through_the_maps() -> None:
     grad = rng.normal(size=(N, J, M, NZ))
     samples = _samples(rng)
     width = np.array([0.003, 0.003])
-    rows = smooth_max_rows(g, grad, samples, width)
+    rows = smooth_max_rows(g, _dense(grad), samples, width)
 
     def row_value(dz: np.ndarray, dwm: float, dwp: float, ds: float) -> np.ndarray:
         dx = (
@@ -76,7 +81,7 @@ def test_narrow_width_gives_the_worst_sample_row() -> None:
     g = rng.normal(size=(N, J, M))  # well separated samples
     grad = rng.normal(size=(N, J, M, NZ))
     samples = _samples(rng)
-    rows = smooth_max_rows(g, grad, samples, np.full(M, 1e-9))
+    rows = smooth_max_rows(g, _dense(grad), samples, np.full(M, 1e-9))
     worst = np.argmax(g, axis=1)
     for n in range(N):
         for m in range(M):

@@ -22,23 +22,27 @@ from worker.solver.transcription.foh_subproblem import InnerRows
 Array = np.ndarray
 
 
-def smooth_max_rows(g: Array, grad: Array, samples: IntervalSamples, width: Array) -> InnerRows:
+def smooth_max_rows(
+    g: Array, grads: dict[int, Array], samples: IntervalSamples, width: Array
+) -> InnerRows:
     """Rows of the smooth maximum over each interval's samples, per constraint.
 
-    ``g`` (N, J, m): constraint values (<= 0 is feasible) at the J samples of the N
-    intervals; ``grad`` (N, J, m, 7): their gradients in the state; ``width`` (m,): the
-    smoothing width d of g_KS = g_max + d ln sum_j exp((g_j - g_max) / d), which lies between
-    g_max and g_max + d ln J (so the row is conservative by at most d ln J) and whose gradient
-    is the softmax-weighted mean of the samples' gradients.
+    ``g`` (N, J, m): constraint values (<= 0 is feasible) at the J samples of the N intervals;
+    ``grads``: their partials (N, J, m) in each state they depend on, by state index (the
+    others are zero); ``width`` (m,): the smoothing width d of
+    g_KS = g_max + d ln sum_j exp((g_j - g_max) / d), which lies between g_max and
+    g_max + d ln J (so the row is conservative by at most d ln J) and whose gradient is the
+    softmax-weighted mean of the samples' gradients.
     """
     d = np.asarray(width, dtype=float)[None, None, :]
     gmax = np.max(g, axis=1, keepdims=True)  # (N, 1, m)
     e = np.exp((g - gmax) / d)
     total = np.sum(e, axis=1)  # (N, m)
     weight = e / total[:, None, :]  # (N, J, m), sums to 1 over J
-    wg = weight[..., None] * grad  # (N, J, m, 7)
-    # one batched product with [Phi | B- | B+ | S] (N, J, 7, 10) gives all four coefficients
-    c = np.matmul(wg, samples.jacobian).sum(axis=1)  # (N, m, 10)
+    jac = samples.jacobian  # [Phi | B- | B+ | S] (N, J, 7, 10)
+    c = np.zeros((g.shape[0], g.shape[2], jac.shape[-1]))  # (N, m, 10)
+    for i, partial in grads.items():  # sum over j of weight * dg/dx_i * d x_i / d(variables)
+        c += np.matmul(np.transpose(weight * partial, (0, 2, 1)), jac[:, :, i, :])
     return InnerRows(g=gmax[:, 0, :] + d[0] * np.log(total), c=c, worst=gmax[:, 0, :])
 
 

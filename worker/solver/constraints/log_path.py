@@ -48,6 +48,10 @@ class LogPathRows:
         """p / p_max at the reference nodes, (K, m)."""
         return np.exp(self.g)
 
+    def take(self, index: Array | slice) -> LogPathRows:
+        """The rows at a subset of the points."""
+        return LogPathRows(self.names, self.g[index], self.g_r[index], self.g_v[index])
+
 
 def active_limits(problem: EntryProblem) -> tuple[str, ...]:
     """Names of the path limits the problem sets, in ``LIMIT_NAMES`` order."""
@@ -91,18 +95,13 @@ def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> 
     return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v)
 
 
-def inner_path_rows(problem: EntryProblem, samples: IntervalSamples) -> InnerRows:
+def inner_path_rows(rows: LogPathRows, samples: IntervalSamples) -> InnerRows:
     """The log path limits between the nodes: per interval and limit, the smooth maximum of the
-    samples (``between_nodes.smooth_max_rows``, width ``SMOOTH_WIDTH``). Node rows alone
-    let a sparse grid put a heating peak between two nodes; these close that gap."""
+    samples (``between_nodes.smooth_max_rows``, width ``SMOOTH_WIDTH``), from ``rows``
+    evaluated at the samples (N * J points, interval-major). Node rows alone let a sparse grid
+    put a heating peak between two nodes; these close that gap."""
     n, j = samples.x.shape[:2]
-    r = samples.x[..., 0].ravel()
-    v = samples.x[..., 3].ravel()
-    rows = log_path_rows(problem, r, v, problem.forces.terms(r, v))
     m = len(rows.names)
-    grad = np.zeros((n * j, m, samples.x.shape[-1]))
-    grad[:, :, 0] = rows.g_r
-    grad[:, :, 3] = rows.g_v
-    return smooth_max_rows(
-        rows.g.reshape(n, j, m), grad.reshape(n, j, m, -1), samples, np.full(m, SMOOTH_WIDTH)
-    )
+    shape = (n, j, m)
+    grads = {0: rows.g_r.reshape(shape), 3: rows.g_v.reshape(shape)}
+    return smooth_max_rows(rows.g.reshape(shape), grads, samples, np.full(m, SMOOTH_WIDTH))

@@ -89,19 +89,21 @@ def inner_zone_rows(
     """Zone exclusions between the nodes: R + margin - c <= 0 as the smooth maximum over each
     interval's samples (width ``SMOOTH_WIDTH_RAD``), linearized through the exact FOH
     maps (``between_nodes``), so a sparse grid cannot step over a zone between two nodes."""
-    n, j, nz = samples.x.shape
+    n, j = samples.x.shape[:2]
     lat = samples.x[..., 2].ravel()
     lon = samples.x[..., 1].ravel()
     g = np.empty((n * j, len(zones)))
-    grad = np.zeros((n * j, len(zones), nz))
+    g_lat = np.empty_like(g)
+    g_lon = np.empty_like(g)
     for i, zone in enumerate(zones):
         rows = zone_distance(lat, lon, zone)
         g[:, i] = zone.radius + margin - rows.c
-        grad[:, i, 2] = -rows.c_lat
-        grad[:, i, 1] = -rows.c_lon
+        g_lat[:, i] = -rows.c_lat
+        g_lon[:, i] = -rows.c_lon
+    shape = (n, j, len(zones))
     return smooth_max_rows(
-        g.reshape(n, j, -1),
-        grad.reshape(n, j, len(zones), nz),
+        g.reshape(shape),
+        {2: g_lat.reshape(shape), 1: g_lon.reshape(shape)},
         samples,
         np.full(len(zones), SMOOTH_WIDTH_RAD),
     )

@@ -63,8 +63,9 @@ class TimeObjective:
         q, _, _ = self._heat(z, ft)
         return float(np.dot(node_weights(s), q) * self.problem.scales.time_s)
 
-    def gradients(self, z: Array, s: Array, ft: ForceTerms) -> tuple[Array, Array]:
-        """d J / d z (K, 7) and d J / d s (N,) of the normalized objective at the reference."""
+    def gradients(self, z: Array, s: Array, ft: ForceTerms | None = None) -> tuple[Array, Array]:
+        """d J / d z (K, 7) and d J / d s (N,) of the normalized objective at the reference
+        (``ft``: the force terms at the nodes, evaluated here when a term needs them)."""
         grad_z = np.zeros((z.shape[0], NZ))
         grad_s = np.zeros(s.size)
         for term in self.problem.objective:
@@ -72,6 +73,8 @@ class TimeObjective:
                 idx, sign = TERMINAL_TERMS[term.name]
                 grad_z[-1, idx] += term.weight * sign / self.scale[idx]
             else:
+                if ft is None:
+                    ft = self.problem.forces.terms(z[:, 0], z[:, 3])
                 q, q_r, q_v = self._heat(z, ft)
                 c = term.weight * self.problem.scales.time_s / self.heat_unit
                 wk = node_weights(s)

@@ -202,22 +202,28 @@ class _Linearizer:
         p, o = self.problem, self.options
         k = z.shape[0]
         mp = self.maps(z, w, s)
-        ft = p.forces.terms(z[:, 0], z[:, 3])
-        rows = log_path_rows(p, z[:, 0], z[:, 3], ft)
         inner = None
         if self.inner_on:
             samples = mp.samples
             assert samples is not None
+            n, j = samples.x.shape[:2]
+            # one evaluation at every sample and the last node: sample 0 of interval k is node k
+            r = np.concatenate([samples.x[..., 0].ravel(), z[-1:, 0]])
+            v = np.concatenate([samples.x[..., 3].ravel(), z[-1:, 3]])
+            at_samples = log_path_rows(p, r, v, p.forces.terms(r, v))
+            rows = at_samples.take(np.r_[np.arange(n) * j, n * j])
             parts = []
             if self.limits:
-                parts.append(inner_path_rows(p, samples))
+                parts.append(inner_path_rows(at_samples.take(slice(0, n * j)), samples))
                 self.inner_ratio = np.exp(np.max(parts[0].worst, axis=0))
             if self.zones:
                 parts.append(inner_zone_rows(self.zones, samples, self.margin))
             inner = stack_rows(parts)
+        else:
+            rows = log_path_rows(p, z[:, 0], z[:, 3], p.forces.terms(z[:, 0], z[:, 3]))
         if self.objective is None:
             self.objective = TimeObjective(p, self.scale, z, s)
-        grad_z, grad_s = self.objective.gradients(z, s, ft)
+        grad_z, grad_s = self.objective.gradients(z, s)
         quad = np.zeros((k, NZ))
         quad_c = np.zeros((k, NZ))
         if rows.names and o.weight_nonlinear > 0:
