@@ -69,7 +69,7 @@ def float_arrays(*arrays: Array) -> list[Array]:
     return [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _horner(p: Array, first: int, count: int, x: float) -> tuple[float, float]:
     """Polynomial p[first:first+count] (lowest order first) and its slope at x (aerodynamics)."""
     value = 0.0
@@ -80,9 +80,11 @@ def _horner(p: Array, first: int, count: int, x: float) -> tuple[float, float]:
     return value, slope
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool) -> None:
     """dz/dt into ``f`` (7,) and, with ``jac``, s df/dz into ``a`` (7, 7) at one point.
+
+    Only the entries that can be nonzero are written: ``a`` must come zero-filled (once).
 
     Forces as ``forces.VehicleForces.terms`` (exponential density, polynomial CL/CD, alpha on its
     schedule); rates and partials as ``dynamics._time_dynamics`` with u = (cos, sin) of the bank.
@@ -154,20 +156,19 @@ def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool
     drag_v = qk_v * cd + qk * (dcd * alpha_v)
     ir3 = ir2 * ir
     iv2 = iv * iv
-    a[:, :] = 0.0
-    a[0, 3] = sg
-    a[0, 4] = vcg
-    a[1, 0] = -f_th * ir
-    a[1, 2] = f_th * tf
-    a[1, 3] = cg * sp * irc
-    a[1, 4] = -vsg * sp * irc
-    a[1, 5] = vcg * cp * irc
-    a[2, 0] = -f_ph * ir
-    a[2, 3] = cg * cp * ir
-    a[2, 4] = -vsg * cp * ir
-    a[2, 5] = -vcg_sp * ir
+    a[0, 3] = s * sg
+    a[0, 4] = s * vcg
+    a[1, 0] = s * (-f_th * ir)
+    a[1, 2] = s * (f_th * tf)
+    a[1, 3] = s * (cg * sp * irc)
+    a[1, 4] = s * (-vsg * sp * irc)
+    a[1, 5] = s * (vcg * cp * irc)
+    a[2, 0] = s * (-f_ph * ir)
+    a[2, 3] = s * (cg * cp * ir)
+    a[2, 4] = s * (-vsg * cp * ir)
+    a[2, 5] = s * (-vcg_sp * ir)
     a_vr = -drag_r + 2.0 * sg * ir3
-    a[3, 3] = -drag_v
+    a[3, 3] = s * (-drag_v)
     a_vga = -cg * ir2
     a_gar = lift_r * u1 * iv - vcg * ir2 + 2.0 * cg * ir3 * iv
     a_gav = lift_v * u1 * iv - lu1 * iv2 + cg * ir + cg * ir2 * iv2
@@ -179,37 +180,37 @@ def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool
     a_psps = vcg * cp * tf * ir
     if om != 0.0:
         a_vr += w2 * cf * wv
-        a[3, 2] = w2 * r * (-sf * wv + cf * (-sg * sf - cg * cf * cp))
+        a[3, 2] = s * (w2 * r * (-sf * wv + cf * (-sg * sf - cg * cf * cp)))
         a_vga += w2 * r * cf * (cg * cf + sg * sf * cp)
-        a[3, 5] = w2 * r * cf * cg * sf * sp
+        a[3, 5] = s * (w2 * r * cf * cg * sf * sp)
         a_gar += w2 * cf * gg * iv
-        a[4, 2] = -2.0 * om * sf * sp + w2 * r * iv * (-sf * gg + cf * (-cg * sf + sg * cp * cf))
+        a_gaph = -2.0 * om * sf * sp + w2 * r * iv * (-sf * gg + cf * (-cg * sf + sg * cp * cf))
+        a[4, 2] = s * a_gaph
         a_gav -= w2 * r * cf * gg * iv2
         a_gaga += w2 * r * cf * (-sg * cf + cg * cp * sf) * iv
-        a[4, 5] = 2.0 * om * cf * cp - w2 * r * cf * sg * sp * sf * iv
+        a[4, 5] = s * (2.0 * om * cf * cp - w2 * r * cf * sg * sp * sf * iv)
         a_psr += rot2 * ir
         a_psph += -2.0 * om * (-tg * cp * sf - cf) + w2 * r * sp * (cf * cf - sf * sf) * ivcg
         a_psv -= rot2 * iv
         a_psga += -2.0 * om * cp * cf * icg * icg + rot2 * tg
         a_psps += 2.0 * om * tg * sp * cf + w2 * r * cp * sf * cf * ivcg
-    a[3, 0] = a_vr
-    a[3, 4] = a_vga
-    a[4, 0] = a_gar
-    a[4, 3] = a_gav
-    a[4, 4] = a_gaga
-    a[5, 0] = a_psr
-    a[5, 2] = a_psph
-    a[5, 3] = a_psv
-    a[5, 4] = a_psga
-    a[5, 5] = a_psps
-    a[4, 6] = (lift * iv) * -u2  # d f / d sigma = B_u d u / d sigma (dynamics_bank_state)
-    a[5, 6] = (lift * ivcg) * u1
-    for i in range(6):
-        for j in range(NZ):
-            a[i, j] *= s
+    else:  # no rotation: these partials vanish
+        a[3, 2] = a[3, 5] = a[4, 2] = a[4, 5] = 0.0
+    a[3, 0] = s * a_vr
+    a[3, 4] = s * a_vga
+    a[4, 0] = s * a_gar
+    a[4, 3] = s * a_gav
+    a[4, 4] = s * a_gaga
+    a[5, 0] = s * a_psr
+    a[5, 2] = s * a_psph
+    a[5, 3] = s * a_psv
+    a[5, 4] = s * a_psga
+    a[5, 5] = s * a_psps
+    a[4, 6] = s * ((lift * iv) * -u2)  # d f / d sigma = B_u d u / d sigma (dynamics_bank_state)
+    a[5, 6] = s * ((lift * ivcg) * u1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _augmented_rhs(
     tau: float,
     y: Array,
@@ -245,7 +246,7 @@ def _augmented_rhs(
     out[6, NAUG - 1] = f[6]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def interval_maps_kernel(
     x0: Array, w0: Array, w1: Array, s: Array, p: Array, substeps: int, keep: bool
 ) -> tuple[Array, Array]:
@@ -256,7 +257,7 @@ def interval_maps_kernel(
     out = np.empty((m_count, NZ, NAUG))
     kept = np.empty((m_count, substeps + 1 if keep else 0, NZ, NAUG))
     f = np.empty((2, NZ))
-    a = np.empty((NZ, NZ))
+    a = np.zeros((NZ, NZ))  # _rates writes only its structural nonzeros
     k1 = np.empty((NZ, NAUG))
     k2 = np.empty((NZ, NAUG))
     k3 = np.empty((NZ, NAUG))
@@ -291,7 +292,7 @@ def interval_maps_kernel(
     return out, kept
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _axpy(y: Array, c: float, k: Array, out: Array) -> None:
     """out = y + c k, elementwise, without a temporary."""
     for i in range(y.shape[0]):
@@ -299,7 +300,7 @@ def _axpy(y: Array, c: float, k: Array, out: Array) -> None:
             out[i, j] = y[i, j] + c * k[i, j]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def propagate_kernel(
     x0: Array, w0: Array, w1: Array, s: Array, p: Array, substeps: int, ground_stop: bool
 ) -> Array:
@@ -308,7 +309,7 @@ def propagate_kernel(
     m_count = s.size
     out = np.empty((m_count, NZ))
     f = np.empty(NZ)
-    a = np.empty((NZ, NZ))
+    a = np.zeros((NZ, NZ))  # _rates writes only its structural nonzeros
     x = np.empty(NZ)
     xt = np.empty(NZ)
     k1 = np.empty(NZ)
@@ -345,7 +346,7 @@ def propagate_kernel(
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _end_gradient(
     x0: Array,
     w0: float,
@@ -425,7 +426,7 @@ def _end_gradient(
     out[NZ + 2] = g_s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def lagrangian_hessian_kernel(
     x0: Array,
     w0: Array,
@@ -444,7 +445,7 @@ def lagrangian_hessian_kernel(
     hess = np.empty((n_int, nb, nb))
     base = np.empty(NZ + 3)
     pert = np.empty(NZ + 3)
-    a_st = np.empty((4 * substeps, NZ, NZ))
+    a_st = np.zeros((4 * substeps, NZ, NZ))  # _rates writes only its structural nonzeros
     f_st = np.empty((4 * substeps, NZ))
     work = np.empty((13, NZ))
     xp = np.empty(NZ)

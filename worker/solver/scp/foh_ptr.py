@@ -14,11 +14,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from worker.solver import side_thread
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
 from worker.solver.constraints.between_nodes import stack_rows
 from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
@@ -173,21 +175,20 @@ class _Linearizer:
             return trapezoid_maps(z, w, s, p.forces, p.omega)
         return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, samples=self.inner_on)
 
-    def curvature(self, data: SubproblemData, multipliers: Array | None) -> Array | None:
-        """The Lagrangian curvature of the interval maps about ``data``'s reference, or None.
+    def curvature(self, z: Array, w: Array, s: Array, multipliers: Array | None) -> Array | None:
+        """The Lagrangian curvature of the interval maps about the reference (z, w, s), or None.
 
         ``multipliers`` (N, 7): the last subproblem's multipliers of the dynamics rows, in
         nondimensional state units. None without them, without ``second_order``, or when a
-        perturbed integration is not finite (the step is then first-order). Computed only for a
-        reference that gets a subproblem: not for the one that ends the loop.
+        perturbed integration is not finite (the step is then first-order).
         """
         if multipliers is None or not self.second_order or self.difference_steps is None:
             return None
         p = self.problem
         return lagrangian_hessian(
-            data.z,
-            data.w,
-            data.s,
+            z,
+            w,
+            s,
             p.forces,
             p.omega,
             -multipliers,  # the rows read x_{k+1} - Phi_k(v_k): Phi_k enters with a minus
@@ -282,7 +283,7 @@ class _Linearizer:
 def _finite(data: SubproblemData) -> bool:
     """Whether the linearization is usable (a long step can leave the atmosphere model)."""
     mp = data.maps
-    parts = [mp.x_prop, mp.Phi, mp.Bm, mp.Bp, mp.S, data.path_g]
+    parts = [mp.x_prop, mp.jacobian, data.path_g]
     if data.inner is not None:
         parts.append(data.inner.g)
     return all(bool(np.all(np.isfinite(a))) for a in parts)
@@ -398,6 +399,14 @@ def run_foh_ptr(
     it_start = time.perf_counter()
     last_multipliers: Array | None = None
     last_step: Array | None = None
+    # The curvature of a new reference needs only the reference and the multipliers: with a
+    # second CPU it is integrated on the helper thread while this one discretizes the same
+    # reference (both kernels release the GIL); otherwise, in line once the loop goes on.
+    overlap = lin.second_order and side_thread.available()
+    virtual = np.array([t.virtual for t in sub.soft], dtype=bool)  # terminal buffers
+    soft_weights = np.array([t.weight for t in sub.soft if not t.virtual])
+    virtual_unit = 1.0 / scale[[t.state for t in sub.soft if t.virtual]]
+    curvature: Future[Array | None] | None = None
     data, ratio = lin.data(z, w, s)
     defect_by_state, defect = _defect(data, scale)
 
@@ -460,7 +469,11 @@ def run_foh_ptr(
         if sub.w_buf > options.weight_virtual_control:
             sub.set_virtual_factor(1.0)
         sub.w_tr = w_tr
-        data.hessian = lin.curvature(data, last_multipliers)
+        if curvature is not None:
+            data.hessian = curvature.result()
+            curvature = None
+        else:
+            data.hessian = lin.curvature(z, w, s, last_multipliers)
         lin_s = time.perf_counter() - it_start
         limit = (
             remaining
@@ -492,20 +505,15 @@ def run_foh_ptr(
         assert lin.objective is not None
         new_values = lin.objective.values(new.z, new.s)
         cost = lin.objective.normalized(new_values)
-        tr_slack = float(np.sum(new.dz**2) + np.sum(new.dw**2))
         step = np.concatenate([new.dz.ravel(), new.dw])
+        tr_slack = float(np.dot(step, step))
         reversal = _cosine(step, last_step) if last_step is not None else 0.0
         nl_pen = float(np.sum(data.quad_z[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
         zone_pen = float(
             np.sum(data.quad_z[:, 1:3] * (new.z[:, 1:3] - data.quad_center[:, 1:3]) ** 2)
         )
-        virtual = np.array([t.virtual for t in sub.soft], dtype=bool)
-        weights = np.array([t.weight for t in sub.soft])
-        soft = float(np.dot(weights[~virtual], new.soft_slacks[~virtual]))
-        vc_norm = float(
-            np.sum(new.soft_slacks[virtual] / scale[[t.state for t in sub.soft if t.virtual]])
-            + np.sum(new.buffers)
-        )
+        soft = float(np.dot(soft_weights, new.soft_slacks[~virtual]))
+        vc_norm = float(np.sum(new.soft_slacks[virtual] * virtual_unit) + np.sum(new.buffers))
         t_nodes = np.concatenate([[0.0], np.cumsum(new.s)]) * sc.time_s
         record = IterationRecord(
             iteration=it,
@@ -563,8 +571,11 @@ def run_foh_ptr(
         )
         previous = (z, w, s, last_multipliers)
         z, w, s, last_multipliers = new.z, new.w, new.s, multipliers
+        if overlap and multipliers is not None:
+            curvature = side_thread.submit(lin.curvature, z, w, s, multipliers)
         data, ratio = lin.data(z, w, s)  # the next linearization judges this step
         if not _finite(data):  # reject the step: back to the reference, heavier trust weight
+            curvature = None  # of the rejected reference: not used
             z, w, s, last_multipliers = previous
             data, ratio = lin.data(z, w, s)
             w_tr = min(w_tr * options.trust_factor, 1e3)
