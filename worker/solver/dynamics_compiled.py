@@ -81,15 +81,11 @@ def _horner(p: Array, first: int, count: int, x: float) -> tuple[float, float]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool) -> None:
-    """dz/dt into ``f`` (7,) and, with ``jac``, s df/dz into ``a`` (7, 7) at one point.
-
-    Only the entries that can be nonzero are written: ``a`` must come zero-filled (once).
-
-    Forces as ``forces.VehicleForces.terms`` (exponential density, polynomial CL/CD, alpha on its
-    schedule); rates and partials as ``dynamics._time_dynamics`` with u = (cos, sin) of the bank.
-    """
-    r, ph, v, ga, ps, sig = x[0], x[2], x[3], x[4], x[5], x[6]
+def aero_terms(
+    r: float, v: float, p: Array
+) -> tuple[float, float, float, float, float, float, float, float]:
+    """Density, d rho / d r, alpha (deg), d alpha / d V and CL, CD with their slopes in alpha at
+    nondimensional (r, V): ``forces.VehicleForces.terms`` for the compiled models."""
     rho = p[_RHO0] * math.exp(-((r - 1.0) * p[_R0]) / p[_HS])
     rho_r = (-rho / p[_HS]) * p[_R0]
     alpha = p[_ALPHA0]
@@ -106,6 +102,20 @@ def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool
         dcd = dcd_dcl * dcl
     else:
         cd, dcd = _horner(p, _COEFFS + ncl, int(p[_NCD]), alpha)
+    return rho, rho_r, alpha, alpha_v, cl, dcl, cd, dcd
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rates(x: Array, w: float, s: float, p: Array, f: Array, a: Array, jac: bool) -> None:
+    """dz/dt into ``f`` (7,) and, with ``jac``, s df/dz into ``a`` (7, 7) at one point.
+
+    Only the entries that can be nonzero are written: ``a`` must come zero-filled (once).
+
+    Forces as ``forces.VehicleForces.terms`` (exponential density, polynomial CL/CD, alpha on its
+    schedule); rates and partials as ``dynamics._time_dynamics`` with u = (cos, sin) of the bank.
+    """
+    r, ph, v, ga, ps, sig = x[0], x[2], x[3], x[4], x[5], x[6]
+    rho, rho_r, _alpha, alpha_v, cl, dcl, cd, dcd = aero_terms(r, v, p)
     kb = p[_KB]
     qk = kb * rho * v * v
     lift = qk * cl
@@ -498,7 +508,20 @@ def warm_up() -> float:
     s = np.full(1, 0.01)
     interval_maps_kernel(x0, w, w, s, params, 2, True)
     propagate_kernel(x0, w, w, s, params, 2, True)
-    lagrangian_hessian_kernel(x0, w, w, s, x0.copy(), np.full(NZ + 3, 1e-5), NZ + 3, params, 2)
+    from worker.solver.constraints.path_compiled import log_rows_kernel, smooth_max_kernel
+    from worker.solver.transcription.foh_hessian import curvature_kernel
+
+    keep = np.array([0, 2, 3, 4, 5, 6, 7, 8, 9])
+    upper = np.triu_indices(keep.size)
+    steps = np.full(NZ + 3, 1e-5)
+    curvature_kernel(x0, w, w, s, x0.copy(), steps, NZ + 3, params, 2, keep, steps[keep], *upper)
+
+    limits = np.zeros(13)
+    limits[:3] = 1.0  # heat rate, dynamic pressure and load factor; a 3-term alpha factor
+    limits[9:] = [3.0, 1.0, 0.0, 0.0]
+    g, g_r, _ = log_rows_kernel(x0[:, 0], x0[:, 3], limits, params)
+    aug = np.zeros((1, 1, NZ, NAUG))
+    smooth_max_kernel(g[None], np.array([0, 3]), np.stack([g_r[None]] * 2), aug, np.ones(3))
     _warmed = True
     return time.perf_counter() - start
 

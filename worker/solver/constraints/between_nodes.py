@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from worker.solver.constraints.path_compiled import smooth_max_kernel
 from worker.solver.transcription.foh_exact import IntervalSamples
 from worker.solver.transcription.foh_subproblem import InnerRows
 
@@ -32,18 +33,18 @@ def smooth_max_rows(
     others are zero); ``width`` (m,): the smoothing width d of
     g_KS = g_max + d ln sum_j exp((g_j - g_max) / d), which lies between g_max and
     g_max + d ln J (so the row is conservative by at most d ln J) and whose gradient is the
-    softmax-weighted mean of the samples' gradients.
+    softmax-weighted mean of the samples' gradients (compiled: ``path_compiled``).
     """
-    d = np.asarray(width, dtype=float)[None, None, :]
-    gmax = np.max(g, axis=1, keepdims=True)  # (N, 1, m)
-    e = np.exp((g - gmax) / d)
-    total = np.sum(e, axis=1)  # (N, m)
-    weight = e / total[:, None, :]  # (N, J, m), sums to 1 over J
-    jac = samples.jacobian  # [Phi | B- | B+ | S] (N, J, 7, 10)
-    c = np.zeros((g.shape[0], g.shape[2], jac.shape[-1]))  # (N, m, 10)
-    for i, partial in grads.items():  # sum over j of weight * dg/dx_i * d x_i / d(variables)
-        c += np.matmul(np.transpose(weight * partial, (0, 2, 1)), jac[:, :, i, :])
-    return InnerRows(g=gmax[:, 0, :] + d[0] * np.log(total), c=c, worst=gmax[:, 0, :])
+    states = np.array(list(grads), dtype=np.int64)
+    partials = np.stack([np.asarray(grads[i], dtype=np.float64) for i in grads])
+    value, c, worst = smooth_max_kernel(
+        np.ascontiguousarray(g, dtype=np.float64),
+        states,
+        partials,
+        np.ascontiguousarray(samples.augmented, dtype=np.float64),
+        np.asarray(width, dtype=np.float64),
+    )
+    return InnerRows(g=value, c=c, worst=worst)
 
 
 def stack_rows(parts: list[InnerRows]) -> InnerRows:

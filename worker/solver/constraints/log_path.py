@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from worker.solver.constraints.between_nodes import smooth_max_rows
+from worker.solver.constraints.path_compiled import log_rows_kernel
 from worker.solver.forces import ForceTerms
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
@@ -93,6 +94,22 @@ def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> 
             g_r[:, j] = (ft.lift * ft.lift_r + ft.drag * ft.drag_r) / n2
             g_v[:, j] = (ft.lift * ft.lift_v + ft.drag * ft.drag_v) / n2
     return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v)
+
+
+def path_rows_at(
+    problem: EntryProblem, r: Array, v: Array, compiled: tuple[Array, Array] | None
+) -> LogPathRows:
+    """``log_path_rows`` at nondimensional (r, V), the force terms evaluated here: by the
+    compiled kernel when ``compiled`` holds its parameters (``path_compiled.limit_parameters``),
+    else in numpy."""
+    if compiled is None:
+        return log_path_rows(problem, r, v, problem.forces.terms(r, v))
+    g, g_r, g_v = log_rows_kernel(
+        np.ascontiguousarray(r, dtype=np.float64),
+        np.ascontiguousarray(v, dtype=np.float64),
+        *compiled,
+    )
+    return LogPathRows(active_limits(problem), g, g_r, g_v)
 
 
 def inner_path_rows(rows: LogPathRows, samples: IntervalSamples) -> InnerRows:

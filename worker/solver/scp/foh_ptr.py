@@ -23,13 +23,14 @@ import numpy as np
 from worker.solver import side_thread
 from worker.solver.conic import ConicBackend, ConicStatus, make_backend
 from worker.solver.constraints.between_nodes import stack_rows
-from worker.solver.constraints.log_path import active_limits, inner_path_rows, log_path_rows
+from worker.solver.constraints.log_path import active_limits, inner_path_rows, path_rows_at
 from worker.solver.constraints.no_fly import (
     inner_zone_rows,
     longitude_factor,
     penalty_window,
     zone_distance,
 )
+from worker.solver.constraints.path_compiled import limit_parameters
 from worker.solver.dynamics_bank_state import NZ
 from worker.solver.dynamics_compiled import compiled_parameters, warm_up
 from worker.solver.method_result import MethodStatus as ScpStatus
@@ -37,7 +38,7 @@ from worker.solver.problem import STATE_NAMES, EntryProblem
 from worker.solver.scp.foh_objective import TimeObjective
 from worker.solver.scp.history import IterationRecord
 from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
-from worker.solver.transcription.foh_hessian import lagrangian_hessian
+from worker.solver.transcription.foh_hessian import BlockLayout, convexified_curvature
 from worker.solver.transcription.foh_subproblem import (
     FohSubproblem,
     GridLimits,
@@ -166,8 +167,10 @@ class _Linearizer:
             and (self.limits or self.zones)
         )
         self.inner_ratio = np.zeros(len(self.limits))
+        self.path_parameters = limit_parameters(problem, self.limits)  # None: numpy rows
         self.second_order = bool(options.second_order)  # the schema allows it with exact_foh only
         self.difference_steps: Array | None = None  # set once the subproblem's scales are known
+        self.layout: BlockLayout | None = None  # where the curvature goes in the subproblem's P
 
     def maps(self, z: Array, w: Array, s: Array) -> IntervalMaps:
         p, o = self.problem, self.options
@@ -176,16 +179,18 @@ class _Linearizer:
         return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, samples=self.inner_on)
 
     def curvature(self, z: Array, w: Array, s: Array, multipliers: Array | None) -> Array | None:
-        """The Lagrangian curvature of the interval maps about the reference (z, w, s), or None.
+        """The P entries of the convexified Lagrangian curvature of the interval maps about the
+        reference (z, w, s) (``foh_hessian.convexified_curvature``), or None.
 
         ``multipliers`` (N, 7): the last subproblem's multipliers of the dynamics rows, in
         nondimensional state units. None without them, without ``second_order``, or when a
         perturbed integration is not finite (the step is then first-order).
         """
-        if multipliers is None or not self.second_order or self.difference_steps is None:
+        if multipliers is None or not self.second_order or self.layout is None:
             return None
+        assert self.difference_steps is not None
         p = self.problem
-        return lagrangian_hessian(
+        return convexified_curvature(
             z,
             w,
             s,
@@ -194,7 +199,7 @@ class _Linearizer:
             -multipliers,  # the rows read x_{k+1} - Phi_k(v_k): Phi_k enters with a minus
             self.difference_steps,
             self.options.second_order_substeps,
-            with_interval=self.difference_steps.size == NZ + 3,
+            self.layout,
         )
 
     def data(self, z: Array, w: Array, s: Array) -> tuple[SubproblemData, Array]:
@@ -211,7 +216,7 @@ class _Linearizer:
             # one evaluation at every sample and the last node: sample 0 of interval k is node k
             r = np.concatenate([samples.x[..., 0].ravel(), z[-1:, 0]])
             v = np.concatenate([samples.x[..., 3].ravel(), z[-1:, 3]])
-            at_samples = log_path_rows(p, r, v, p.forces.terms(r, v))
+            at_samples = path_rows_at(p, r, v, self.path_parameters)
             rows = at_samples.take(np.r_[np.arange(n) * j, n * j])
             parts = []
             if self.limits:
@@ -221,7 +226,7 @@ class _Linearizer:
                 parts.append(inner_zone_rows(self.zones, samples, self.margin))
             inner = stack_rows(parts)
         else:
-            rows = log_path_rows(p, z[:, 0], z[:, 3], p.forces.terms(z[:, 0], z[:, 3]))
+            rows = path_rows_at(p, z[:, 0], z[:, 3], self.path_parameters)
         if self.objective is None:
             self.objective = TimeObjective(p, self.scale, z, s)
         grad_z, grad_s = self.objective.gradients(z, s)
@@ -386,6 +391,7 @@ def run_foh_ptr(
         hessian_blocks=lin.second_order,
     )
     lin.difference_steps = DIFFERENCE_STEP * sub.block_scale
+    lin.layout = sub.curvature_layout
     backend = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
     tol_z, tol_s = _tolerances(options, problem)
     history: list[IterationRecord] = []
@@ -399,14 +405,17 @@ def run_foh_ptr(
     it_start = time.perf_counter()
     last_multipliers: Array | None = None
     last_step: Array | None = None
-    # The curvature of a new reference needs only the reference and the multipliers: with a
-    # second CPU it is integrated on the helper thread while this one discretizes the same
-    # reference (both kernels release the GIL); otherwise, in line once the loop goes on.
-    overlap = lin.second_order and side_thread.available()
     virtual = np.array([t.virtual for t in sub.soft], dtype=bool)  # terminal buffers
     soft_weights = np.array([t.weight for t in sub.soft if not t.virtual])
     virtual_unit = 1.0 / scale[[t.state for t in sub.soft if t.virtual]]
+
+    # The curvature of a new reference needs only the reference and the multipliers: with a
+    # second CPU it is integrated and convexified on the helper thread while this one
+    # discretizes the same reference (the kernels release the GIL); otherwise, in line once
+    # the loop goes on.
+    overlap = lin.second_order and side_thread.available()
     curvature: Future[Array | None] | None = None
+
     data, ratio = lin.data(z, w, s)
     defect_by_state, defect = _defect(data, scale)
 
@@ -470,10 +479,10 @@ def run_foh_ptr(
             sub.set_virtual_factor(1.0)
         sub.w_tr = w_tr
         if curvature is not None:
-            data.hessian = curvature.result()
+            data.curvature = curvature.result()
             curvature = None
         else:
-            data.hessian = lin.curvature(z, w, s, last_multipliers)
+            data.curvature = lin.curvature(z, w, s, last_multipliers)
         lin_s = time.perf_counter() - it_start
         limit = (
             remaining
@@ -555,7 +564,7 @@ def run_foh_ptr(
                 "no_fly_zone_clearance_deg": list(lin.zone_clearance),
                 "no_fly_zone_window_nodes": [list(wd) for wd in lin.windows],
                 "discretization_s": lin_s,
-                "second_order_step": data.hessian is not None,
+                "second_order_step": data.curvature is not None,
                 "weight_trust_region": w_tr,
                 "node_times_s": t_nodes.tolist(),
             },

@@ -12,7 +12,10 @@ intervals integrated in one batch; ``convexify`` keeps the subproblem a convex Q
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from numba import njit
 
 from worker.solver.dynamics_bank_state import NZ
 from worker.solver.dynamics_compiled import (
@@ -92,3 +95,101 @@ def convexify(blocks: Array, floor: float = 0.0) -> Array:
     lam, vec = np.linalg.eigh(blocks)
     lam = np.maximum(lam, floor)
     return np.matmul(vec * lam[:, None, :], np.transpose(vec, (0, 2, 1)))
+
+
+@dataclass(frozen=True)
+class BlockLayout:
+    """How the curvature blocks enter the subproblem's P: the block variables kept (all but
+    the longitude, which enters no rate, so its row and column are zero), their scales (the
+    subproblem's variable units) and the (row, column) pairs of the upper triangle stored."""
+
+    keep: Array  # (k,) int64 indices into the nb block variables
+    scale: Array  # (k,) float64
+    rows: Array  # (T,) int64 indices into keep
+    cols: Array  # (T,) int64
+
+    def values(self, hessian: Array) -> Array:
+        """The P entries (N * T,) of blocks (N, nb, nb): scaled, convexified, upper triangles."""
+        k = self.keep
+        scaled = hessian[:, k[:, None], k] * self.scale[:, None] * self.scale[None, :]
+        upper: Array = convexify(scaled)[:, self.rows, self.cols]
+        return upper.ravel()
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _convexified_values(
+    hess: Array, keep: Array, scale: Array, rows: Array, cols: Array
+) -> tuple[Array, bool]:
+    """``BlockLayout.values`` compiled, with a flag that is False when a block is not finite."""
+    n_int = hess.shape[0]
+    k = keep.size
+    out = np.empty((n_int, rows.size))
+    block = np.empty((k, k))
+    for n in range(n_int):
+        for i in range(k):
+            for j in range(k):
+                block[i, j] = hess[n, keep[i], keep[j]] * scale[i] * scale[j]
+        if not np.all(np.isfinite(block)):
+            return out.ravel(), False
+        lam, vec = np.linalg.eigh(block)
+        lam = np.maximum(lam, 0.0)
+        for t in range(rows.size):
+            i, j = rows[t], cols[t]
+            acc = 0.0
+            for m in range(k):
+                acc += vec[i, m] * lam[m] * vec[j, m]
+            out[n, t] = acc
+    return out.ravel(), True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def curvature_kernel(
+    x0: Array,
+    w0: Array,
+    w1: Array,
+    s: Array,
+    weights: Array,
+    steps: Array,
+    nb: int,
+    p: Array,
+    substeps: int,
+    keep: Array,
+    scale: Array,
+    rows: Array,
+    cols: Array,
+) -> tuple[Array, bool]:
+    """The Hessian blocks and their convexified P entries in one call without the GIL, so the
+    whole of it can overlap other work (``side_thread``)."""
+    hess = lagrangian_hessian_kernel(x0, w0, w1, s, weights, steps, nb, p, substeps)
+    return _convexified_values(hess, keep, scale, rows, cols)
+
+
+def convexified_curvature(
+    z: Array,
+    w: Array,
+    s: Array,
+    forces: VehicleForces,
+    omega: float,
+    weights: Array,
+    steps: Array,
+    substeps: int,
+    layout: BlockLayout,
+    *,
+    compiled: bool = True,
+) -> Array | None:
+    """The P entries of the convexified curvature blocks (``lagrangian_hessian`` through
+    ``layout``), or None when a perturbed integration is not finite. ``steps`` has one entry
+    per block variable (9 or 10: with the interval length)."""
+    nb = steps.size
+    params = compiled_parameters(forces, omega) if compiled else None
+    if params is not None:
+        xa, wa, wb, sa, la, ha = float_arrays(z[:-1], w[:-1], w[1:], s, weights, steps)
+        lay = layout
+        values, ok = curvature_kernel(
+            xa, wa, wb, sa, la, ha, nb, params, substeps, lay.keep, lay.scale, lay.rows, lay.cols
+        )
+        return values if ok else None
+    hess = lagrangian_hessian(
+        z, w, s, forces, omega, weights, steps, substeps, nb == NZ + 3, compiled=False
+    )
+    return None if hess is None else layout.values(hess)

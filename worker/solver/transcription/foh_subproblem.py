@@ -23,7 +23,7 @@ import numpy as np
 from worker.solver.conic import ConeProblem, ConeSpec, SparseAssembler
 from worker.solver.dynamics_bank_state import NZ, SIGMA
 from worker.solver.transcription.foh_exact import IntervalMaps
-from worker.solver.transcription.foh_hessian import convexify
+from worker.solver.transcription.foh_hessian import BlockLayout
 
 Array = np.ndarray
 R_, TH_, PH_, V_ = 0, 1, 2, 3
@@ -76,7 +76,7 @@ class SubproblemData:
     quad_z: Array  # (K, 7)
     quad_center: Array  # (K, 7)
     inner: InnerRows | None = None
-    hessian: Array | None = None  # (N, nb, nb) Lagrangian curvature in nondimensional units
+    curvature: Array | None = None  # P entries of the curvature blocks (curvature_layout)
 
 
 @dataclass
@@ -345,14 +345,21 @@ class FohSubproblem:
         self._e_scale = Dz[None, :] * inv[:, None]
         # The longitude enters no rate (paper 000 eq. 1), so its row and column of every
         # curvature block are zero: the blocks are convexified and stored without it.
-        self._curved = np.array([j for j in range(nb) if j != TH_])
+        keep = np.array([j for j in range(nb) if j != TH_], dtype=np.int64)
+        upper = np.triu_indices(keep.size)
+        self.curvature_layout = BlockLayout(
+            keep=keep,
+            scale=np.ascontiguousarray(self.block_scale[keep], dtype=np.float64),
+            rows=upper[0].astype(np.int64),
+            cols=upper[1].astype(np.int64),
+        )
+        self._n_upper = upper[0].size
         diag = np.arange(self.n_quad)
         p_rows, p_cols = [diag], [diag]
-        self._upper = np.triu_indices(self._curved.size)
         if self.hessian_blocks:  # one upper triangle per interval block; overlaps are summed
-            curved_cols = self.block_cols[:, self._curved]
-            a = curved_cols[:, self._upper[0]].ravel()
-            b = curved_cols[:, self._upper[1]].ravel()
+            curved_cols = self.block_cols[:, keep]
+            a = curved_cols[:, upper[0]].ravel()
+            b = curved_cols[:, upper[1]].ravel()
             p_rows.append(np.minimum(a, b))
             p_cols.append(np.maximum(a, b))
         self.P_asm = SparseAssembler(
@@ -423,17 +430,14 @@ class FohSubproblem:
                 b[row], b[row + 1] = t.hi - zr, zr - t.lo
                 row += 2
 
-        n_blocks = N * self._upper[0].size if self.hessian_blocks else 0
+        n_blocks = N * self._n_upper if self.hessian_blocks else 0
         p = np.zeros(self.n_quad + n_blocks)
         pz = p[: K * NZ].reshape(K, NZ)
         pz[:] = 2.0 * self.w_tr + 2.0 * d.quad_z * Dz[None, :] ** 2
         p[K * NZ : K * NZ + K] = 2.0 * self.w_tr
         p[K * NZ + K : self.n_quad] = 2.0 * self.w_tr2
-        if self.hessian_blocks and d.hessian is not None:
-            keep = self._curved
-            scale = self.block_scale[keep]
-            scaled = d.hessian[:, keep[:, None], keep] * scale[:, None] * scale[None, :]
-            p[self.n_quad :] = convexify(scaled)[:, self._upper[0], self._upper[1]].ravel()
+        if self.hessian_blocks and d.curvature is not None:
+            p[self.n_quad :] = d.curvature
         q = np.zeros(self.n)
         qz = q[: K * NZ].reshape(K, NZ)
         qz[:] = d.grad_z * Dz[None, :] + 2.0 * d.quad_z * (d.z - d.quad_center) * Dz[None, :]
