@@ -38,3 +38,10 @@ def submit(fn: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> Future[T]:
             pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="solver-side")
             _executor = (os.getpid(), pool)
         return _executor[1].submit(fn, *args, **kwargs)
+
+
+def completed(value: T) -> Future[T]:
+    """A future that already holds ``value``: work done in line, behind the same interface."""
+    future: Future[T] = Future()
+    future.set_result(value)
+    return future

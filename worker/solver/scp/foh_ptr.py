@@ -202,6 +202,20 @@ class _Linearizer:
             self.layout,
         )
 
+    def report(self) -> dict[str, Any]:
+        """The last linearization's between-node path ratios and zone clearances, for the
+        history (``IterationRecord.extra``)."""
+        between = (
+            {name: float(self.inner_ratio[j]) for j, name in enumerate(self.limits)}
+            if self.inner_on and self.limits
+            else {}
+        )
+        return {
+            "path_ratio_between_nodes": between,
+            "no_fly_zone_clearance_deg": list(self.zone_clearance),
+            "no_fly_zone_window_nodes": [list(wd) for wd in self.windows],
+        }
+
     def data(self, z: Array, w: Array, s: Array) -> tuple[SubproblemData, Array]:
         """Subproblem data about (z, w, s), without the curvature (``curvature``), and the
         path-limit ratios at the nodes (K, m)."""
@@ -478,18 +492,18 @@ def run_foh_ptr(
         if sub.w_buf > options.weight_virtual_control:
             sub.set_virtual_factor(1.0)
         sub.w_tr = w_tr
-        if curvature is not None:
-            data.curvature = curvature.result()
-            curvature = None
-        else:
-            data.curvature = lin.curvature(z, w, s, last_multipliers)
+        if curvature is None:  # in line: one CPU, or a reference restored after a rejection
+            curvature = side_thread.completed(lin.curvature(z, w, s, last_multipliers))
+        subproblem = sub.build(data, curvature.result)  # waits for the curvature last
+        second_order = curvature.result() is not None
+        curvature = None
         lin_s = time.perf_counter() - it_start
         limit = (
             remaining
             if options.conic_time_limit_s is None
             else min(remaining, options.conic_time_limit_s)
         )
-        sol = backend.solve(sub.build(data), time_limit_s=limit)
+        sol = backend.solve(subproblem, time_limit_s=limit)
         conic_total += sol.solve_time_s
         if not sol.status.usable or sol.x is None:
             code = {
@@ -509,6 +523,10 @@ def run_foh_ptr(
             else None
         )
         new = sub.unpack(sol.x, data)
+        if overlap and multipliers is not None:  # the new reference's curvature, on the helper
+            curvature = side_thread.submit(lin.curvature, new.z, new.w, new.s, multipliers)
+        made_by, made_by_ratio, made_by_report = data, ratio, lin.report()
+        data, ratio = lin.data(new.z, new.w, new.s)  # the next linearization judges this step
         change = np.max(np.abs(new.z - z), axis=0)
         change_s = float(np.max(np.abs(new.s - s))) if s.size else 0.0
         assert lin.objective is not None
@@ -517,10 +535,9 @@ def run_foh_ptr(
         step = np.concatenate([new.dz.ravel(), new.dw])
         tr_slack = float(np.dot(step, step))
         reversal = _cosine(step, last_step) if last_step is not None else 0.0
-        nl_pen = float(np.sum(data.quad_z[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
-        zone_pen = float(
-            np.sum(data.quad_z[:, 1:3] * (new.z[:, 1:3] - data.quad_center[:, 1:3]) ** 2)
-        )
+        quad, center = made_by.quad_z, made_by.quad_center
+        nl_pen = float(np.sum(quad[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
+        zone_pen = float(np.sum(quad[:, 1:3] * (new.z[:, 1:3] - center[:, 1:3]) ** 2))
         soft = float(np.dot(soft_weights, new.soft_slacks[~virtual]))
         vc_norm = float(np.sum(new.soft_slacks[virtual] * virtual_unit) + np.sum(new.buffers))
         t_nodes = np.concatenate([[0.0], np.cumsum(new.s)]) * sc.time_s
@@ -554,17 +571,11 @@ def run_foh_ptr(
                 "interval_s_min": float(np.min(new.s) * sc.time_s),
                 "interval_s_max": float(np.max(new.s) * sc.time_s),
                 "path_ratio_at_nodes": {
-                    name: float(np.max(ratio[:, j])) for j, name in enumerate(lin.limits)
+                    name: float(np.max(made_by_ratio[:, j])) for j, name in enumerate(lin.limits)
                 },
-                "path_ratio_between_nodes": {
-                    name: float(lin.inner_ratio[j]) for j, name in enumerate(lin.limits)
-                }
-                if lin.inner_on and lin.limits
-                else {},
-                "no_fly_zone_clearance_deg": list(lin.zone_clearance),
-                "no_fly_zone_window_nodes": [list(wd) for wd in lin.windows],
+                **made_by_report,
                 "discretization_s": lin_s,
-                "second_order_step": data.curvature is not None,
+                "second_order_step": second_order,
                 "weight_trust_region": w_tr,
                 "node_times_s": t_nodes.tolist(),
             },
@@ -580,9 +591,6 @@ def run_foh_ptr(
         )
         previous = (z, w, s, last_multipliers)
         z, w, s, last_multipliers = new.z, new.w, new.s, multipliers
-        if overlap and multipliers is not None:
-            curvature = side_thread.submit(lin.curvature, z, w, s, multipliers)
-        data, ratio = lin.data(z, w, s)  # the next linearization judges this step
         if not _finite(data):  # reject the step: back to the reference, heavier trust weight
             curvature = None  # of the rejected reference: not used
             z, w, s, last_multipliers = previous

@@ -15,6 +15,7 @@ The pattern is built once; ``build`` only writes values into the preallocated da
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -76,7 +77,6 @@ class SubproblemData:
     quad_z: Array  # (K, 7)
     quad_center: Array  # (K, 7)
     inner: InnerRows | None = None
-    curvature: Array | None = None  # P entries of the curvature blocks (curvature_layout)
 
 
 @dataclass
@@ -368,8 +368,15 @@ class FohSubproblem:
         self._scale_rows = np.tile(1.0 / Dz, N)  # dynamics rows divided by the state scale
 
     # ------------------------------------------------------------------ values
-    def build(self, d: SubproblemData) -> ConeProblem:
-        """The subproblem linearized about ``d`` (values only; the pattern never changes)."""
+    def build(
+        self, d: SubproblemData, curvature: Callable[[], Array | None] | None = None
+    ) -> ConeProblem:
+        """The subproblem linearized about ``d`` (values only; the pattern never changes).
+
+        ``curvature`` gives the P entries of the curvature blocks (``curvature_layout``; None:
+        none). It is called last, once everything else is assembled, so the work that produces
+        it can run meanwhile on another thread.
+        """
         K, N, Dz, Ds = self.K, self.N, self.Dz, self.Ds
         mp = d.maps
         inv = 1.0 / Dz
@@ -436,8 +443,6 @@ class FohSubproblem:
         pz[:] = 2.0 * self.w_tr + 2.0 * d.quad_z * Dz[None, :] ** 2
         p[K * NZ : K * NZ + K] = 2.0 * self.w_tr
         p[K * NZ + K : self.n_quad] = 2.0 * self.w_tr2
-        if self.hessian_blocks and d.curvature is not None:
-            p[self.n_quad :] = d.curvature
         q = np.zeros(self.n)
         qz = q[: K * NZ].reshape(K, NZ)
         qz[:] = d.grad_z * Dz[None, :] + 2.0 * d.quad_z * (d.z - d.quad_center) * Dz[None, :]
@@ -445,6 +450,9 @@ class FohSubproblem:
             q[self.col_s] = d.grad_s * Ds
         q[self.col_soft] = self.soft_weights
         q[self.col_buf] = self.w_buf
+        values = curvature() if curvature is not None else None
+        if self.hessian_blocks and values is not None:
+            p[self.n_quad :] = values
         return ConeProblem(P=self.P_asm.assemble(p), q=q, A=A, b=b, cones=self.cones)
 
     def unpack(self, x: Array, d: SubproblemData) -> Solution:
