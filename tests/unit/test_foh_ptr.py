@@ -12,12 +12,16 @@ from __future__ import annotations
 import itertools
 from typing import Any
 
+import numpy as np
 import pytest
 
 from app.schemas import ProblemDocument
 from worker.solver.api import solve_problem
 from worker.solver.methods import check_support
+from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario
+from worker.solver.scp import foh_ptr
+from worker.solver.scp.foh_ptr import run_foh_ptr
 
 REFERENCE_VF_M_S = 971.03
 TABLE4_40_NODES = {  # paper 002 Table 4, proposed method, 40 nodes (rounded up)
@@ -156,3 +160,37 @@ def test_a_guess_that_reaches_the_ground_fails_the_job_with_the_reason() -> None
     assert result["failure"]["code"] == "initial_guess"
     assert "method.initial_bank_deg" in result["failure"]["message"]
     assert result["history"] == []
+
+
+def _run_case_1() -> Any:
+    """Case 1 through the loop itself (``run_foh_ptr``), adaptive grid."""
+    doc = _doc(grid="adaptive")
+    return run_foh_ptr(build_problem(doc), doc.method)
+
+
+def test_helper_thread_changes_nothing_but_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a second CPU the curvature runs on the helper thread beside the maps; in line it is
+    the same function of the same inputs, so the iterates are identical, not merely close."""
+    overlapped = _run_case_1()
+    monkeypatch.setattr(foh_ptr.side_thread, "available", lambda: False)
+    in_line = _run_case_1()
+    assert overlapped.status == in_line.status == "converged"
+    assert len(overlapped.history) == len(in_line.history)
+    assert np.array_equal(overlapped.z, in_line.z) and np.array_equal(overlapped.s, in_line.s)
+
+
+def test_a_rejected_step_returns_to_its_reference_and_the_loop_goes_on(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A step whose linearization is not finite is recorded as rejected, the loop goes back to
+    the reference that made it (discarding the curvature started for the rejected one) and
+    still converges. Rejection is forced once, at the third step's check."""
+    checks = itertools.count(1)
+    real = foh_ptr._finite
+    monkeypatch.setattr(foh_ptr, "_finite", lambda data: next(checks) != 3 and real(data))
+    out = _run_case_1()
+    rejected = [r for r in out.history if "rejected" in r.extra]
+    assert [r.iteration for r in rejected] == [3]
+    assert out.status == "converged"
+    vf = out.objective_terms["max_terminal_velocity"]
+    assert abs(vf - REFERENCE_VF_M_S) <= 0.003 * REFERENCE_VF_M_S
