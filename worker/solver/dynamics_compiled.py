@@ -357,6 +357,22 @@ def propagate_kernel(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def chain_kernel(x0: Array, s: Array, p: Array, substeps: int) -> Array:
+    """Nodes (C, N + 1, 7) of one propagation from each start state x0 (C, 7) over the
+    intervals ``s`` at zero bank rate (constant bank), interval after interval, a state below
+    the surface turning NaN (``propagate_kernel``'s ground stop): the guess sweep in one call."""
+    c = x0.shape[0]
+    out = np.empty((c, s.size + 1, NZ))
+    zero = np.zeros(c)
+    x = x0.copy()
+    out[:, 0] = x
+    for k in range(s.size):
+        x = propagate_kernel(x, zero, zero, np.full(c, s[k]), p, substeps, True)
+        out[:, k + 1] = x
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _end_gradient(
     x0: Array,
     w0: float,
@@ -508,6 +524,7 @@ def warm_up() -> float:
     s = np.full(1, 0.01)
     interval_maps_kernel(x0, w, w, s, params, 2, True)
     propagate_kernel(x0, w, w, s, params, 2, True)
+    chain_kernel(x0, s, params, 2)
     from worker.solver.constraints.path_compiled import log_rows_kernel, smooth_max_kernel
     from worker.solver.transcription.foh_hessian import curvature_kernel
 

@@ -403,6 +403,7 @@ def run_foh_ptr(
         weight_trust_interval=options.weight_trust_interval,
         weight_buffer=options.weight_virtual_control,
         hessian_blocks=lin.second_order,
+        identity_e=options.discretization == "exact_foh",
     )
     lin.difference_steps = DIFFERENCE_STEP * sub.block_scale
     lin.layout = sub.curvature_layout

@@ -152,6 +152,7 @@ class FohSubproblem:
         weight_trust_interval: float,
         weight_buffer: float = 0.0,
         hessian_blocks: bool = False,
+        identity_e: bool = False,
     ) -> None:
         self.K = K = nodes
         self.N = N = nodes - 1
@@ -190,6 +191,7 @@ class FohSubproblem:
         self.set_virtual_factor(1.0)
         self.n_quad = K * NZ + K + self.col_s.size  # diagonal of P covers z, w and s
         self.hessian_blocks = hessian_blocks
+        self.identity_e = identity_e  # E = I (exact FOH): only its diagonal is in the pattern
         cols = [self.col_z[:-1], self.col_w[:-1, None], self.col_w[1:, None]]
         if self.adaptive:
             cols.append(self.col_s[:, None])
@@ -227,7 +229,11 @@ class FohSubproblem:
         i = np.arange(NZ)[None, :, None]
         j = np.arange(NZ)[None, None, :]
         dyn = (NZ * k + i) + 0 * j
-        add("E", dyn, self.col_z[1:][:, None, :] + 0 * i, np.tile(np.eye(NZ).ravel(), N))
+        if self.identity_e:
+            diag = NZ * np.arange(N)[:, None] + np.arange(NZ)[None, :]
+            add("E", diag, self.col_z[1:], 1.0)
+        else:
+            add("E", dyn, self.col_z[1:][:, None, :] + 0 * i, np.tile(np.eye(NZ).ravel(), N))
         add("Phi", dyn, self.col_z[:-1][:, None, :] + 0 * i, 0.0)
         dyn1 = NZ * np.arange(N)[:, None] + np.arange(NZ)[None, :]
         add("Bm", dyn1, self.col_w[:-1][:, None] + 0 * dyn1, 0.0)
@@ -383,6 +389,8 @@ class FohSubproblem:
         data = self._A_data.copy()
         nb = self.block_cols.shape[1]
         if mp.E is not None:  # the identity otherwise, already in the base values
+            if self.identity_e:
+                raise ValueError("these maps have an E block; the pattern holds the identity only")
             data[self._slots["E"]] = (mp.E * self._e_scale).ravel()
         data[self._slot_dyn] = mp.jacobian[:, :, :nb] * self._dyn_scale
         if self.n_limits:

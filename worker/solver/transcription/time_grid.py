@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
-from worker.solver.dynamics_compiled import compiled_parameters, propagate_kernel
+from worker.solver.dynamics_compiled import chain_kernel, compiled_parameters, float_arrays
 from worker.solver.problem import STATE_NAMES, EntryProblem
 
 Array = np.ndarray
@@ -50,17 +50,16 @@ def propagate_constant_bank(
     """Nodes (C, K, 7) of propagations under each constant bank in ``banks`` (rad), batched;
     the compiled kernel when the force models have one (``compiled=False``: numpy)."""
     c = banks.size
-    z = np.empty((c, s.size + 1, NZ))
     x = np.tile(np.r_[problem.y0, 0.0], (c, 1))
     x[:, -1] = banks
-    z[:, 0] = x
-    zero = np.zeros(c)
     params = compiled_parameters(problem.forces, problem.omega) if compiled else None
     if params is not None:  # the same RK4 steps, compiled (dynamics_compiled)
-        for k, sk in enumerate(s):
-            x = propagate_kernel(x, zero, zero, np.full(c, sk), params, GUESS_SUBSTEPS, True)
-            z[:, k + 1] = x
-        return z
+        xa, sa = float_arrays(x, s)
+        chain: Array = chain_kernel(xa, sa, params, GUESS_SUBSTEPS)
+        return chain
+    z = np.empty((c, s.size + 1, NZ))
+    z[:, 0] = x
+    zero = np.zeros(c)
     with np.errstate(all="ignore"):
         for k, sk in enumerate(s):
             h = sk / GUESS_SUBSTEPS
