@@ -231,7 +231,7 @@ class _Linearizer:
             r = np.concatenate([samples.x[..., 0].ravel(), z[-1:, 0]])
             v = np.concatenate([samples.x[..., 3].ravel(), z[-1:, 3]])
             at_samples = path_rows_at(p, r, v, self.path_parameters)
-            rows = at_samples.take(np.r_[np.arange(n) * j, n * j])
+            rows = at_samples.take(np.arange(0, n * j + 1, j))  # sample 0s, then the last node
             parts = []
             if self.limits:
                 parts.append(inner_path_rows(at_samples.take(slice(0, n * j)), samples))
@@ -275,7 +275,7 @@ class _Linearizer:
                 weighted_c[mask, 1] += wz * coslat**2 * zone.longitude
             else:
                 self.windows.append([])
-        for j in (1, 2):
+        for j in (1, 2) if self.windows and any(self.windows) else ():
             on = quad[:, j] > 0
             quad_c[on, j] = weighted_c[on, j] / quad[on, j]
         data = SubproblemData(
