@@ -275,9 +275,10 @@ class _Linearizer:
                 weighted_c[mask, 1] += wz * coslat**2 * zone.longitude
             else:
                 self.windows.append([])
-        for j in (1, 2) if self.windows and any(self.windows) else ():
-            on = quad[:, j] > 0
-            quad_c[on, j] = weighted_c[on, j] / quad[on, j]
+        if any(self.windows):  # an engaged zone pulls its window toward its centre
+            for j in (1, 2):
+                on = quad[:, j] > 0
+                quad_c[on, j] = weighted_c[on, j] / quad[on, j]
         data = SubproblemData(
             z=z,
             w=w,

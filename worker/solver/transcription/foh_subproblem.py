@@ -8,9 +8,11 @@ conditions, |sigma| <= sigma_max, |w| <= w_max, the linearized log path limits (
 linearized no-fly zones (eq. 27), and on the adaptive grid Delta_min <= s_k <= Delta_max,
 |s_k - s_bar_k| <= DeltaT_max and sum s_k = t_f (eq. 11-12). It is a QP (no cones beyond the
 nonnegative orthant); the objective's quadratic part is diagonal, plus, for the SQP step, one
-convexified Lagrangian Hessian block per interval on (dz_k, dw_k, dw_{k+1}[, ds_k]).
+convexified Lagrangian Hessian block per interval on (dz_k, dw_k, dw_{k+1}[, ds_k]), the
+longitude left out (it enters no rate, so its row and column are zero).
 
-The pattern is built once; ``build`` only writes values into the preallocated data arrays.
+The pattern is built once; ``build`` only writes values into the preallocated data arrays. With
+``identity_e`` (exact FOH, E = I) the pattern holds E's diagonal only.
 """
 
 from __future__ import annotations
