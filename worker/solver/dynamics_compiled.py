@@ -542,20 +542,13 @@ def warm_up() -> float:
     interval_maps_kernel(x0, w, w, s, params, 2, True)
     propagate_kernel(x0, w, w, s, params, 2, True)
     chain_kernel(x0, s, params, 2)
-    from worker.solver.constraints.path_compiled import log_rows_kernel, smooth_max_kernel
-    from worker.solver.transcription.foh_hessian import curvature_kernel
+    # the kernels built on these dynamics, each warmed by its own module (lazy imports: they
+    # import this one)
+    from worker.solver.constraints import path_compiled
+    from worker.solver.transcription import foh_hessian
 
-    keep = np.array([0, 2, 3, 4, 5, 6, 7, 8, 9])
-    upper = np.triu_indices(keep.size)
-    steps = np.full(NZ + 3, 1e-5)
-    curvature_kernel(x0, w, w, s, x0.copy(), steps, NZ + 3, params, 2, keep, steps[keep], *upper)
-
-    limits = np.zeros(13)
-    limits[:3] = 1.0  # heat rate, dynamic pressure and load factor; a 3-term alpha factor
-    limits[9:] = [3.0, 1.0, 0.0, 0.0]
-    g, g_r, _ = log_rows_kernel(x0[:, 0], x0[:, 3], limits, params)
-    aug = np.zeros((1, 1, NZ, NAUG))
-    smooth_max_kernel(g[None], np.array([0, 3]), np.stack([g_r[None]] * 2), aug, np.ones(3))
+    foh_hessian.warm_up(params)
+    path_compiled.warm_up(params)
     _warmed = True
     return time.perf_counter() - start
 

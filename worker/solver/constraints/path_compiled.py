@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from worker.solver.dynamics_compiled import aero_terms, compiled_parameters
+from worker.solver.dynamics_compiled import NAUG, NZ, aero_terms, compiled_parameters
 from worker.solver.problem import EntryProblem
 
 Array = np.ndarray
@@ -144,3 +144,15 @@ def smooth_max_kernel(
                     for col in range(ncol):
                         coef[n, c, col] += wp * aug[n, j, i, col + 1]
     return value, coef, worst
+
+
+def warm_up(forces: Array) -> None:
+    """Compile (or load from the cache) both kernels on a one-point case with every limit and a
+    three-term alpha factor; ``forces``: ``dynamics_compiled.compiled_parameters``' layout.
+    Called by ``dynamics_compiled.warm_up``."""
+    limits = np.zeros(_QA + 3)
+    limits[[_HEAT, _QBAR, _LOAD, _NQA, _QA]] = [1.0, 1.0, 1.0, 3.0, 1.0]
+    point = np.array([1.015])
+    g, g_r, _ = log_rows_kernel(point, np.array([0.9]), limits, forces)
+    aug = np.zeros((1, 1, NZ, NAUG))
+    smooth_max_kernel(g[None], np.array([0, 3]), np.stack([g_r[None]] * 2), aug, np.ones(3))

@@ -193,3 +193,29 @@ def convexified_curvature(
         z, w, s, forces, omega, weights, steps, substeps, nb == NZ + 3, compiled=False
     )
     return None if hess is None else layout.values(hess)
+
+
+def warm_up(params: Array) -> None:
+    """Compile (or load from the cache) ``curvature_kernel`` on one interval with the argument
+    types ``convexified_curvature`` passes; ``params``: ``compiled_parameters``' layout. Called by
+    ``dynamics_compiled.warm_up``."""
+    x0 = np.array([[1.015, 0.0, 0.0, 0.9, 0.0, 0.0, 0.3]])
+    w = np.zeros(1)
+    steps = np.full(NZ + 3, 1e-5)
+    keep = np.array([j for j in range(NZ + 3) if j != 1], dtype=np.int64)
+    rows, cols = (a.astype(np.int64) for a in np.triu_indices(keep.size))
+    curvature_kernel(
+        x0,
+        w,
+        w,
+        np.full(1, 0.01),
+        x0.copy(),
+        steps,
+        NZ + 3,
+        params,
+        2,
+        keep,
+        steps[keep],
+        rows,
+        cols,
+    )
