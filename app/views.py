@@ -74,8 +74,13 @@ class ScenarioJobRequest(BaseModel):
 
 
 class Progress(BaseModel):
-    """Live progress of a running job, written by the worker after every SCP iteration."""
+    """Live progress of a running job, written by the worker at each phase and SCP iteration."""
 
+    phase: Literal["compiling", "optimizing", "verifying"] | None = Field(
+        None,
+        description="What the attempt is doing: compiling the solver's kernels (once per "
+        "install), running SCP iterations, or verifying the answer by propagation.",
+    )
     iteration: int | None = None
     cost: float | None = None
     max_state_change: dict[str, float | None] | float | None = Field(
