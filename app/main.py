@@ -15,6 +15,7 @@ from app.auth import API_KEY_HEADER
 from app.deps import get_owner, get_principal
 from app.dispatch import Dispatcher, make_dispatcher
 from app.dispatch.local import LocalDispatcher
+from app.docs_ui import install_docs
 from app.errors import install_error_handlers
 from app.events import PollingWaker, RedisWaker, Waker
 from app.metrics import build_registry
@@ -140,7 +141,10 @@ def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None =
         version=_version(),
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served by install_docs, from local files
+        redoc_url=None,
     )
+    install_docs(app)
     install_error_handlers(app)
     for module, guard in ((jobs, get_principal), (events, get_principal)):
         app.include_router(module.router, dependencies=[Depends(guard)], responses=_V1_RESPONSES)

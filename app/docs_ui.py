@@ -1,0 +1,79 @@
+"""The interactive API docs (``/docs`` Swagger UI, ``/redoc`` ReDoc), served without a network.
+
+FastAPI's own pages load their JavaScript, CSS, favicon and (ReDoc) Google fonts from CDNs, so
+on a machine without internet they stay blank. Here the same pages reference only files served
+by this application: the Swagger UI and ReDoc bundles shipped in the ``fastapi-offline`` package,
+mounted at :data:`STATIC_URL`. The pages read the application's own ``/openapi.json``.
+"""
+
+from __future__ import annotations
+
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+
+DOCS_URL = "/docs"
+REDOC_URL = "/redoc"
+STATIC_URL = "/docs-static"
+"""Where the bundled Swagger UI and ReDoc files are served."""
+
+SWAGGER_UI_PARAMETERS: dict[str, Any] = {
+    "validatorUrl": None,  # no badge that sends the document to an online validator
+}
+
+
+def static_directory() -> Path:
+    """The folder of the ``fastapi-offline`` package that holds the Swagger UI and ReDoc files."""
+    return Path(str(files("fastapi_offline") / "static"))
+
+
+def _prefix(request: Request) -> str:
+    """The mount point of the application behind a proxy (``root_path``), or ``""``."""
+    return str(request.scope.get("root_path", "")).rstrip("/")
+
+
+def swagger_ui_page(app: FastAPI, request: Request) -> HTMLResponse:
+    """The Swagger UI page of ``app``, every asset from :data:`STATIC_URL`."""
+    root = _prefix(request)
+    return get_swagger_ui_html(
+        openapi_url=f"{root}{app.openapi_url}",
+        title=f"{app.title} - Swagger UI",
+        swagger_js_url=f"{root}{STATIC_URL}/swagger-ui-bundle.js",
+        swagger_css_url=f"{root}{STATIC_URL}/swagger-ui.css",
+        swagger_favicon_url=f"{root}{STATIC_URL}/favicon.png",
+        swagger_ui_parameters=SWAGGER_UI_PARAMETERS,
+    )
+
+
+def redoc_page(app: FastAPI, request: Request) -> HTMLResponse:
+    """The ReDoc page of ``app``, every asset from :data:`STATIC_URL` and no web fonts."""
+    root = _prefix(request)
+    return get_redoc_html(
+        openapi_url=f"{root}{app.openapi_url}",
+        title=f"{app.title} - ReDoc",
+        redoc_js_url=f"{root}{STATIC_URL}/redoc.standalone.js",
+        redoc_favicon_url=f"{root}{STATIC_URL}/favicon.png",
+        with_google_fonts=False,
+    )
+
+
+def install_docs(app: FastAPI) -> None:
+    """Serve ``/docs``, ``/redoc`` and their assets; create ``app`` with ``docs_url=None``."""
+    if app.docs_url is not None or app.redoc_url is not None:
+        raise RuntimeError("create the application with docs_url=None and redoc_url=None")
+    app.mount(STATIC_URL, StaticFiles(directory=static_directory()), name="docs-static")
+
+    @app.get(DOCS_URL, include_in_schema=False)
+    async def swagger_ui(request: Request) -> HTMLResponse:
+        """Swagger UI."""
+        return swagger_ui_page(app, request)
+
+    @app.get(REDOC_URL, include_in_schema=False)
+    async def redoc(request: Request) -> HTMLResponse:
+        """ReDoc."""
+        return redoc_page(app, request)
