@@ -1,6 +1,10 @@
 """Turn a submitted body into a validated problem: a problem document, or a scenario + overrides.
 
-All problems are collected and reported together (422) with dotted field paths.
+Overrides are a JSON Merge Patch (RFC 7396) of the scenario's problem, with one addition: an
+override object that changes the tag of a discriminated union (``planet.atmosphere.model``,
+``method.name``, ...) replaces the scenario's object instead of merging into it, so a model
+can be switched without deleting the old model's fields one by one. All problems are collected
+and reported together (422) with dotted field paths.
 """
 
 from __future__ import annotations
@@ -8,10 +12,14 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from types import UnionType
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
-from pydantic import ValidationError
+from pydantic import BaseModel, Field, TypeAdapter, ValidationError
+from pydantic.fields import FieldInfo
 
 from app.errors import ApiError
 from app.schemas import FieldIssue, ProblemDocument, issues_from_validation_error
@@ -32,14 +40,150 @@ class Submission:
         return str(self.problem.method.name)
 
 
-def deep_merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
-    """``base`` with ``overrides`` merged in: objects merge key by key, other values replace."""
-    merged = copy.deepcopy(base)
-    for key, value in overrides.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = deep_merge(merged[key], value)
+JsonPath = tuple[str, ...]
+"""Member names from the document root; ``"[]"`` stands for any array item, ``"*"`` any key."""
+
+
+@dataclass(frozen=True)
+class TaggedUnion:
+    """A discriminated union of the contract: where it sits, the key that picks the variant."""
+
+    path: JsonPath
+    key: str
+    tags: tuple[str, ...]
+    adapter: TypeAdapter[Any] = field(compare=False, repr=False)
+
+    @property
+    def location(self) -> str:
+        """The union's place as a dotted path (``planet.atmosphere``, ``no_fly_zones[]``)."""
+        return ".".join(self.path).replace(".[]", "[]")
+
+    def matches(self, path: JsonPath) -> bool:
+        """Whether ``path`` (a concrete member path) is where this union sits."""
+        return len(path) == len(self.path) and all(
+            mine in (theirs, "*") for mine, theirs in zip(self.path, path, strict=True)
+        )
+
+    def tag_of(self, value: dict[str, Any]) -> Any:
+        """The variant ``value`` selects: its tag, else the one validation fills in, else None."""
+        if self.key in value:
+            return value[self.key]
+        try:
+            return getattr(self.adapter.validate_python(value), self.key, None)
+        except ValidationError:
+            return None
+
+    def switches(self, target: dict[str, Any], patch: dict[str, Any]) -> bool:
+        """Whether ``patch`` names a variant other than the one ``target`` is."""
+        if patch.get(self.key) is None:
+            return False
+        current = self.tag_of(target)
+        return current is not None and patch[self.key] != current
+
+
+def _literal_values(annotation: Any) -> tuple[str, ...]:
+    """The string values of a ``Literal`` annotation (empty for anything else)."""
+    if get_origin(annotation) is not Literal:
+        return ()
+    return tuple(str(value) for value in get_args(annotation))
+
+
+def _collect(
+    annotation: Any,
+    path: JsonPath,
+    found: list[TaggedUnion],
+    stack: tuple[type[BaseModel], ...],
+    discriminator: str | None = None,
+    metadata: tuple[Any, ...] = (),
+) -> None:
+    """Append every discriminated union reachable from ``annotation`` at ``path`` to ``found``."""
+    origin = get_origin(annotation)
+    args = get_args(annotation)
+    if origin is Annotated:
+        extra = tuple(annotation.__metadata__)
+        for item in extra:
+            if isinstance(item, FieldInfo) and isinstance(item.discriminator, str):
+                discriminator = item.discriminator
+        _collect(args[0], path, found, stack, discriminator, (*metadata, *extra))
+    elif origin is Union or origin is UnionType:
+        members = [arg for arg in args if arg is not type(None)]
+        if discriminator is not None:
+            tags = tuple(
+                tag
+                for member in members
+                if isinstance(member, type) and issubclass(member, BaseModel)
+                for tag in _literal_values(member.model_fields[discriminator].annotation)
+            )
+            adapter: TypeAdapter[Any] = TypeAdapter(
+                Annotated[annotation, Field(discriminator=discriminator), *metadata]
+            )
+            found.append(TaggedUnion(path, discriminator, tags, adapter))
+        for member in members:
+            _collect(member, path, found, stack)
+    elif origin in (list, tuple, set, frozenset):
+        for arg in args:
+            if arg is not Ellipsis:
+                _collect(arg, (*path, "[]"), found, stack)
+    elif origin is dict and len(args) == 2:
+        _collect(args[1], (*path, "*"), found, stack)
+    elif isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        if annotation in stack:
+            return
+        for name, info in annotation.model_fields.items():
+            _collect(
+                info.annotation,
+                (*path, info.alias or name),
+                found,
+                (*stack, annotation),
+                info.discriminator if isinstance(info.discriminator, str) else None,
+                tuple(info.metadata),
+            )
+
+
+def tagged_unions(model: type[BaseModel]) -> tuple[TaggedUnion, ...]:
+    """Every discriminated union in ``model``, found from its pydantic fields, in field order."""
+    found: list[TaggedUnion] = []
+    _collect(model, (), found, ())
+    return tuple(found)
+
+
+@cache
+def problem_unions() -> tuple[TaggedUnion, ...]:
+    """The discriminated unions of the problem document (built once)."""
+    return tagged_unions(ProblemDocument)
+
+
+def merge_patch(
+    target: Any,
+    patch: Any,
+    unions: Sequence[TaggedUnion] = (),
+    path: JsonPath = (),
+) -> Any:
+    """``target`` changed by ``patch`` as JSON Merge Patch (RFC 7396), plus the variant rule.
+
+    ``null`` removes a member (a no-op when it is absent), objects merge member by member,
+    arrays and scalars replace. Variant rule: at the place of one of ``unions``, a patch object
+    whose tag names another variant than the target's replaces the target instead of merging
+    into it, so the old variant's fields do not linger. Neither argument is modified.
+    """
+    if not isinstance(patch, dict):
+        return copy.deepcopy(patch)
+    union = next((u for u in unions if u.matches(path)), None)
+    if not isinstance(target, dict) or (union is not None and union.switches(target, patch)):
+        result: dict[str, Any] = {}
+    else:
+        result = copy.deepcopy(target)
+    for name, value in patch.items():
+        if value is None:
+            result.pop(name, None)
         else:
-            merged[key] = copy.deepcopy(value)
+            result[name] = merge_patch(result.get(name), value, unions, (*path, name))
+    return result
+
+
+def apply_overrides(document: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """A problem document changed by an overrides document (``merge_patch`` on its unions)."""
+    merged: dict[str, Any] = merge_patch(document, overrides, problem_unions())
     return merged
 
 
@@ -76,9 +220,9 @@ def _scenario_document(body: dict[str, Any]) -> tuple[dict[str, Any], str]:
     except KeyError as exc:
         issue = FieldIssue(field="scenario", message=str(exc.args[0]), code="unknown_scenario")
         raise invalid([issue], "request") from None
-    document = deep_merge(scenario.problem, request.overrides)
+    document = apply_overrides(scenario.problem, request.overrides)
     if request.method is not None:
-        document = deep_merge(document, {"method": request.method})
+        document = apply_overrides(document, {"method": request.method})
     return document, scenario.name
 
 

@@ -1,0 +1,109 @@
+"""A scenario's atmosphere switched by overrides, through a real ``trajopt serve`` (embedded mode).
+
+The switch is checked where it ends up: the normalized problem ``/v1/problems/validate``
+returns, the problem stored with the job, and the solver's trajectory, whose dynamic pressure
+follows the U.S. Standard Atmosphere 1976 and not the scenario's exponential one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.integration.harness import SCENARIO, ApiServer, ServiceClient
+from worker.solver.atmosphere import ExponentialAtmosphere, US76Atmosphere
+
+pytestmark = pytest.mark.slow
+
+SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
+US76 = {"planet": {"atmosphere": {"model": "us76"}}}
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("overrides-data")
+
+
+@pytest.fixture(scope="module")
+def server(data_dir: Path) -> Iterator[ApiServer]:
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
+    }
+    env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
+    yield from ApiServer(env, data_dir / "serve.log").serving()
+
+
+@pytest.fixture
+def client(server: ApiServer) -> Iterator[ServiceClient]:
+    yield from server.serving_client()
+
+
+def _stored_problem(data_dir: Path, job_id: str) -> dict[str, Any]:
+    """The problem document the service stored with the job (its SQLite row)."""
+    with sqlite3.connect(data_dir / "trajopt.sqlite3") as connection:
+        row = connection.execute("SELECT problem FROM jobs WHERE id = ?", (job_id,)).fetchone()
+    assert row is not None, job_id
+    problem: dict[str, Any] = json.loads(row[0]) if isinstance(row[0], str) else row[0]
+    return problem
+
+
+def test_validate_switches_the_atmosphere_and_names_bad_fields(client: ServiceClient) -> None:
+    scenario = client.http.get(f"/v1/scenarios/{SCENARIO}").json()
+    assert scenario["problem"]["planet"]["atmosphere"]["model"] == "exponential"
+
+    response = client.http.post(
+        "/v1/problems/validate", json={"scenario": SCENARIO, "overrides": US76}
+    )
+    assert response.status_code == 200, response.text
+    assert response.json()["problem"]["planet"]["atmosphere"] == {"model": "us76"}
+
+    bad = {"planet": {"atmosphere": {"model": "us76", "scale_height_m": 8000}}}
+    response = client.http.post(
+        "/v1/problems/validate", json={"scenario": SCENARIO, "overrides": bad}
+    )
+    assert response.status_code == 422, response.text
+    error = response.json()["error"]
+    assert (error["code"], error["field"]) == (
+        "invalid_problem",
+        "planet.atmosphere.scale_height_m",
+    )
+    assert [i["code"] for i in error["issues"]] == ["extra_forbidden"]
+
+    response = client.http.post(
+        "/v1/problems/validate", json={"scenario": SCENARIO, "overrides": [US76]}
+    )
+    assert response.status_code == 422, response.text
+    assert response.json()["error"]["field"] == "overrides"
+
+
+def test_job_is_stored_and_solved_with_us76(client: ServiceClient, data_dir: Path) -> None:
+    overrides = {**US76, "method": {"nodes": 41, "max_iterations": 5}}
+    job = client.submit({"scenario": SCENARIO, "overrides": overrides})
+    stored = _stored_problem(data_dir, job["id"])
+    assert stored["planet"]["atmosphere"] == {"model": "us76"}
+    assert stored["method"]["nodes"] == 41
+
+    done = client.wait_finished(job["id"])
+    assert done["status"] in ("succeeded", "failed"), done
+    result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
+    assert result["provenance"]["method_options"]["nodes"] == 41
+    trajectory = result["trajectory"]
+    altitude = np.asarray(trajectory["altitude_m"])
+    speed = np.asarray(trajectory["velocity_m_s"])
+    density = 2.0 * np.asarray(trajectory["dynamic_pressure_Pa"]) / speed**2
+    us76, _ = US76Atmosphere().density(altitude)
+    np.testing.assert_allclose(density, us76, rtol=1e-9)
+    own = client.http.get(f"/v1/scenarios/{SCENARIO}").json()["problem"]["planet"]["atmosphere"]
+    exponential, _ = ExponentialAtmosphere(
+        rho0=own["density_sea_level_kg_m3"], scale_height_m=own["scale_height_m"]
+    ).density(altitude)
+    assert np.median(np.abs(density / exponential - 1.0)) > 0.1
