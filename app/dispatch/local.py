@@ -1,33 +1,75 @@
 """Embedded dispatch: run jobs in a pool of local processes, through the same ``execute_job``.
 
 Used when no broker is configured. The request returns at once; a spawned process does the
-CPU-bound solve. Jobs left queued or running by a previous server process are re-dispatched at
-start-up (the attempt counter still applies), and a pool broken by a dying child is rebuilt.
+CPU-bound solve. The pool loads the solver (compiling its kernels on the first start after an
+install) before it reports ready. At start-up, jobs whose process is known to be gone (a process
+of this host that no longer exists held their lease) go back to the queue, and queued jobs are
+dispatched; a job another live server or worker runs is never taken: if that process dies, its
+lease lapses and the sweeper re-queues it. A pool broken by a dying child is rebuilt the same way.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import multiprocessing
+import os
 import signal
+import socket
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 from app.settings import Settings
 from app.storage import repository
+from app.storage.models import JobStatus
 from app.storage.session import get_database
 from worker.limits import TimeLimits
 
 log = logging.getLogger(__name__)
 
+PARENT_WATCH_INTERVAL_S = 1.0
+"""How often a pool process checks that the server that started it is still alive."""
+STOP_JOIN_TIMEOUT_S = 10.0
+"""How long shutdown waits for each terminated pool process to exit before killing it."""
+WARMING_UP = (
+    "starting: loading the solver (its kernels are compiled on the first start after an "
+    "install, which takes about a minute)"
+)
 
-def _init_child() -> None:
+
+def holder_is_gone(holder: str) -> bool:
+    """Whether the process named by a lease holder ``host/pid`` is known to no longer exist:
+    only a process of this host can be checked; any other is presumed alive."""
+    host, _, pid_text = holder.rpartition("/")
+    if host != socket.gethostname() or not pid_text.isdigit():
+        return False
+    try:
+        os.kill(int(pid_text), 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # exists, owned by someone else
+        return False
+    return False
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while True:
+        time.sleep(PARENT_WATCH_INTERVAL_S)
+        if os.getppid() != parent_pid:  # the server died (kill -9): do not run on as an orphan
+            os._exit(1)
+
+
+def _init_child(parent_pid: int) -> None:
     # Ctrl+C goes to the whole process group; the server decides when children stop.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s [%(name)s] %(message)s")
+    threading.Thread(
+        target=_watch_parent, args=(parent_pid,), name="trajopt-parent-watch", daemon=True
+    ).start()
 
 
 def _run_job(job_id: str, settings: Settings) -> str:
@@ -36,16 +78,15 @@ def _run_job(job_id: str, settings: Settings) -> str:
     return execute_job(job_id, settings=settings)
 
 
-def _warm_up() -> None:
+def _warm_up() -> float:
+    """Import the solver and load (or, first after an install, compile) its kernels; seconds."""
+    start = time.perf_counter()
     import worker.jobs
+    import worker.solver.api  # noqa: F401
+    from worker.solver.dynamics_compiled import warm_up
 
-    try:
-        import worker.solver.api  # noqa: F401
-        from worker.solver.dynamics_compiled import warm_up
-
-        warm_up()  # compiled kernels: built (first run on a machine) or loaded before any job
-    except Exception:  # the first real job reports any import problem
-        log.debug("solver import failed during warm-up", exc_info=True)
+    warm_up()
+    return time.perf_counter() - start
 
 
 class LocalDispatcher:
@@ -60,6 +101,7 @@ class LocalDispatcher:
         self._lock = threading.Lock()
         self._executor: ProcessPoolExecutor | None = None
         self._pending: dict[str, Future[str]] = {}
+        self._warming: list[Future[float]] = []
         self._closed = False
 
     def _new_executor(self) -> ProcessPoolExecutor:
@@ -67,32 +109,42 @@ class LocalDispatcher:
             max_workers=self._settings.local_workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_init_child,
+            initargs=(os.getpid(),),
         )
-        for _ in range(self._settings.local_workers):
-            executor.submit(_warm_up)
+        started = time.perf_counter()
+        self._warming = [executor.submit(_warm_up) for _ in range(self._settings.local_workers)]
+        self._warming[0].add_done_callback(functools.partial(self._warmed, started))
         return executor
 
+    def _warmed(self, started: float, future: Future[float]) -> None:
+        if future.cancelled():
+            return
+        error = future.exception()
+        if error is not None:
+            log.error("the solver could not be loaded in the job pool", exc_info=error)
+            return
+        log.info("solver loaded in the job pool in %.1f s", time.perf_counter() - started)
+
     def start(self) -> None:
-        """Start the pool and re-dispatch jobs a previous server process left unfinished."""
+        """Start the pool and dispatch the stored jobs that wait for a process."""
         with self._lock:
             self._executor = self._new_executor()
         self.resubmit_unfinished()
 
     def resubmit_unfinished(self) -> None:
-        """Hand every stored queued or running job to the pool again.
+        """Re-queue the running jobs whose process is gone, then dispatch every queued job.
 
-        Called at start-up and after the pool broke, when no process of this pool runs any job:
-        running jobs are orphans, so they are put back to ``queued`` at once instead of waiting
-        for their lease to lapse.
+        A job queued here and also in another server's pool runs once: the first delivery claims
+        it and the other finds it busy or finished.
         """
         database = get_database(self._settings.effective_database_url)
         with database.session() as session:
-            released = repository.release_running(session)
-            job_ids = repository.active_job_ids(session)
+            released = repository.release_dead_holders(session, holder_is_gone)
+            job_ids = repository.active_job_ids(session, [JobStatus.QUEUED.value])
         if released:
-            log.info("%d interrupted job(s) put back in the queue", released)
+            log.info("%d interrupted job(s) put back in the queue", len(released))
         for job_id in job_ids:
-            log.info("re-dispatching unfinished job %s", job_id)
+            log.info("dispatching unfinished job %s", job_id)
             self.submit(job_id, TimeLimits(0, 0, 0))
 
     def submit(self, job_id: str, limits: TimeLimits) -> None:
@@ -131,12 +183,14 @@ class LocalDispatcher:
         self.resubmit_unfinished()
 
     def ping(self) -> str | None:
-        """``None`` while the pool accepts work."""
+        """``None`` while the pool accepts work and has the solver loaded."""
         with self._lock:
             if self._executor is None or self._closed:
                 return "local job pool not running"
             if getattr(self._executor, "_broken", False):
                 return "local job pool broken (restarting)"
+            if not any(f.done() for f in self._warming):
+                return WARMING_UP
         return None
 
     def queue_depth(self) -> int | None:
@@ -145,7 +199,9 @@ class LocalDispatcher:
             return sum(1 for f in self._pending.values() if not f.running() and not f.done())
 
     def shutdown(self) -> None:
-        """Stop the pool without waiting; unfinished jobs resume at the next start."""
+        """Stop the pool's processes, then make the leases of the jobs they ran lapse at once:
+        another server on the same database re-queues them at its next sweep, this one at its
+        next start (their attempt count still applies)."""
         with self._lock:
             self._closed = True
             executor, self._executor = self._executor, None
@@ -156,3 +212,20 @@ class LocalDispatcher:
         for process in processes:
             if process.is_alive():
                 process.terminate()
+        for process in processes:
+            process.join(STOP_JOIN_TIMEOUT_S)
+            if process.is_alive():
+                process.kill()
+                process.join(STOP_JOIN_TIMEOUT_S)
+        # the executor's own thread and queues end once its processes are gone
+        with contextlib.suppress(Exception):
+            executor.shutdown(wait=True)
+        try:
+            database = get_database(self._settings.effective_database_url)
+            with database.session() as session:
+                released = repository.release_dead_holders(session, holder_is_gone, requeue=False)
+        except Exception:  # their leases lapse by themselves
+            log.warning("could not release the interrupted jobs", exc_info=True)
+            return
+        if released:
+            log.info("%d interrupted job(s) released for the next sweep or start", len(released))

@@ -3,6 +3,8 @@ and the ``api_keys`` table (hashed client keys)."""
 
 from __future__ import annotations
 
+import os
+import socket
 from datetime import UTC, datetime
 from enum import StrEnum
 from typing import Any
@@ -62,6 +64,11 @@ class UtcDateTime(TypeDecorator[datetime]):
         return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
 
 
+def process_identity(pid: int | None = None) -> str:
+    """``host/pid`` naming a process: the holder recorded on the lease of the attempt it runs."""
+    return f"{socket.gethostname()}/{os.getpid() if pid is None else pid}"
+
+
 def utcnow() -> datetime:
     """The current time in UTC, aware."""
     return datetime.now(UTC)
@@ -108,6 +115,8 @@ class Job(Base):
     solve_s: Mapped[float | None] = mapped_column(Float, nullable=True)
     lease_expires_at: Mapped[datetime | None] = mapped_column(UtcDateTime, nullable=True)
     """Heartbeat of the running attempt: past this instant its worker is presumed gone."""
+    lease_holder: Mapped[str | None] = mapped_column(String(255), nullable=True)
+    """``host/pid`` of the process running the attempt (see :func:`process_identity`)."""
 
 
 class ApiKey(Base):

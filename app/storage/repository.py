@@ -8,7 +8,7 @@ overwrite a finished one. Worker writes are also fenced by the attempt number th
 from __future__ import annotations
 
 import uuid
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from enum import StrEnum
@@ -17,7 +17,7 @@ from typing import Any
 from sqlalchemy import Text, and_, case, cast, delete, func, or_, select, update
 from sqlalchemy.orm import Session
 
-from app.storage.models import ACTIVE_STATUSES, ApiKey, Job, JobStatus, utcnow
+from app.storage.models import ACTIVE_STATUSES, ApiKey, Job, JobStatus, process_identity, utcnow
 
 _NO_SYNC = {"synchronize_session": False}
 
@@ -124,8 +124,10 @@ def transition(
     allowed_from: Iterable[str],
     attempt: int | None = None,
     values: dict[str, Any] | None = None,
+    unless_cancel_requested: bool = False,
 ) -> bool:
-    """Move ``job_id`` to status ``to`` only if it is in ``allowed_from``; True if it moved."""
+    """Move ``job_id`` to status ``to`` only if it is in ``allowed_from`` (and, with
+    ``unless_cancel_requested``, no cancel was requested); True if it moved."""
     now = utcnow()
     fields: dict[str, Any] = {"status": to, "updated_at": now, **(values or {})}
     if to not in ACTIVE_STATUSES:
@@ -134,6 +136,8 @@ def transition(
     stmt = update(Job).where(Job.id == job_id, Job.status.in_(list(allowed_from)))
     if attempt is not None:
         stmt = stmt.where(Job.attempts == attempt)
+    if unless_cancel_requested:
+        stmt = stmt.where(Job.cancel_requested.is_(False))
     result = session.execute(stmt.values(**fields).execution_options(**_NO_SYNC))
     return _rowcount(result) == 1
 
@@ -192,6 +196,7 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int, lease_s: flo
             started_at=now,
             updated_at=now,
             lease_expires_at=now + timedelta(seconds=lease_s),
+            lease_holder=process_identity(),
             progress=None,
             history=[],
         )
@@ -262,6 +267,23 @@ def record_iteration(
     return _rowcount(session.execute(stmt)) == 1
 
 
+def record_progress(
+    session: Session, job_id: str, attempt: int, progress: dict[str, Any], lease_s: float = 30.0
+) -> bool:
+    """Store the live progress of a running attempt (its phase), renewing its lease; False if
+    the attempt no longer owns the job."""
+    now = utcnow()
+    stmt = (
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.RUNNING.value, Job.attempts == attempt)
+        .values(
+            progress=progress, updated_at=now, lease_expires_at=now + timedelta(seconds=lease_s)
+        )
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
 def renew_lease(session: Session, job_id: str, attempt: int, lease_s: float) -> bool:
     """Heartbeat: push the running attempt's lease ``lease_s`` ahead; False if not ours."""
     stmt = (
@@ -305,7 +327,9 @@ def requeue_lapsed(session: Session, job_id: str, attempt: int, now: datetime) -
             Job.attempts == attempt,
             Job.lease_expires_at < now,
         )
-        .values(status=JobStatus.QUEUED.value, lease_expires_at=None, updated_at=now)
+        .values(
+            status=JobStatus.QUEUED.value, lease_expires_at=None, lease_holder=None, updated_at=now
+        )
         .execution_options(**_NO_SYNC)
     )
     return _rowcount(session.execute(stmt)) == 1
@@ -363,16 +387,47 @@ def claim_stale_queued(
     return claimed
 
 
-def release_running(session: Session) -> int:
-    """Put every running job back to ``queued`` (its workers are known to be gone); returns how
-    many. Only for a process that owns every worker of its database (the embedded pool)."""
-    stmt = (
-        update(Job)
-        .where(Job.status == JobStatus.RUNNING.value)
-        .values(status=JobStatus.QUEUED.value, lease_expires_at=None, updated_at=utcnow())
-        .execution_options(**_NO_SYNC)
+def release_dead_holders(
+    session: Session, is_dead: Callable[[str], bool], *, requeue: bool = True
+) -> list[str]:
+    """Free the running jobs whose lease holder ``is_dead``; returns their ids.
+
+    With ``requeue`` they go back to ``queued`` (for the caller to dispatch); without, their
+    lease is made to lapse now, so whichever sweeper runs next (this server's after a restart,
+    or another server's at once) re-queues and sends them. Only a holder known to be gone is
+    touched (a process of this host that no longer exists), never a live attempt of another
+    server or worker: those keep their job until their lease lapses. Each change is fenced by
+    the attempt and the holder.
+    """
+    now = utcnow()
+    freed: dict[str, Any] = (
+        {"status": JobStatus.QUEUED.value, "lease_expires_at": None, "lease_holder": None}
+        if requeue
+        else {"lease_expires_at": now - timedelta(seconds=1)}
     )
-    return _rowcount(session.execute(stmt))
+    rows = session.execute(
+        select(Job.id, Job.attempts, Job.lease_holder).where(
+            Job.status == JobStatus.RUNNING.value, Job.lease_holder.is_not(None)
+        )
+    ).all()
+    released = []
+    for job_id, attempts, holder in rows:
+        if holder is None or not is_dead(holder):
+            continue
+        stmt = (
+            update(Job)
+            .where(
+                Job.id == job_id,
+                Job.status == JobStatus.RUNNING.value,
+                Job.attempts == attempts,
+                Job.lease_holder == holder,
+            )
+            .values(**freed, updated_at=now)
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            released.append(job_id)
+    return released
 
 
 def count_active(session: Session, owner: str) -> int:
@@ -478,11 +533,10 @@ def request_cancel(session: Session, job_id: str, owner: str) -> Job | None:
     return get_job(session, job_id, owner)
 
 
-def active_job_ids(session: Session) -> list[str]:
-    """Ids of jobs still queued or running, oldest first (for re-dispatch after a restart)."""
-    stmt = (
-        select(Job.id).where(Job.status.in_(list(ACTIVE_STATUSES))).order_by(Job.created_at, Job.id)
-    )
+def active_job_ids(session: Session, statuses: Iterable[str] = ACTIVE_STATUSES) -> list[str]:
+    """Ids of jobs in ``statuses`` (default queued or running), oldest first (for re-dispatch
+    after a restart)."""
+    stmt = select(Job.id).where(Job.status.in_(list(statuses))).order_by(Job.created_at, Job.id)
     return list(session.execute(stmt).scalars())
 
 

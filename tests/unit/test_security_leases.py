@@ -216,12 +216,3 @@ def test_a_requeue_that_cannot_be_sent_is_retried_at_the_next_sweep(
     report = sweep_once(database, dispatcher, settings, now=later, unsent=unsent)
     assert report.resent == [job_id] and unsent == set()
     assert [j for j, _ in dispatcher.submitted] == [job_id]
-
-
-def test_the_embedded_pool_releases_orphaned_running_jobs_at_start(database: Database) -> None:
-    running, queued = _new(database), _new(database)
-    _claim(database, running)  # a live lease, but the process that held it is gone
-    with database.session() as s:
-        assert repository.release_running(s) == 1
-    assert (_job(database, running).status, _job(database, queued).status) == ("queued", "queued")
-    assert _claim(database, running) == 2
