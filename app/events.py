@@ -1,4 +1,5 @@
-"""Server-sent events of one job: one ``iteration`` event per SCP iteration, then one ``end``.
+"""Server-sent events of one job: one ``iteration`` event per SCP iteration, a ``phase`` event
+when the attempt starts compiling, optimizing or verifying, then one ``end``.
 
 The database is the source of every event. A waker only decides when to look again: Redis
 pub/sub notices from the workers when a broker is configured, a short poll otherwise.
@@ -163,6 +164,13 @@ def _read(database: Database, job_id: str, owner: str, since: datetime | None) -
         return _Snapshot(job.status, job.updated_at, job)
 
 
+def _phase_of(job: Job) -> tuple[int, str] | None:
+    """The running attempt's phase as (attempt, phase), if its progress names one."""
+    progress = job.progress if isinstance(job.progress, dict) else {}
+    name = progress.get("phase")
+    return (job.attempts, name) if isinstance(name, str) else None
+
+
 def parse_last_event_id(value: str | None) -> int:
     """Iterations a reconnecting client already has, from its ``Last-Event-ID`` header."""
     if value is None:
@@ -189,6 +197,7 @@ async def job_events(
     """
     sent = after
     attempts: int | None = None
+    phase: tuple[int, str] | None = None
     since: datetime | None = None
     async with waker.subscribe(job_id) as wait:
         while True:
@@ -208,6 +217,12 @@ async def job_events(
                         data=json.dumps(data), event="iteration", id=str(index + 1)
                     )
                 sent = max(sent, len(history))
+                now = _phase_of(job)
+                if now is not None and now != phase and job.status not in TERMINAL_STATUSES:
+                    phase = now
+                    data = {"job_id": job_id, "attempt": now[0], "phase": now[1]}
+                    data["elapsed_s"] = (job.progress or {}).get("elapsed_s")
+                    yield ServerSentEvent(data=json.dumps(data), event="phase")
                 if job.status in TERMINAL_STATUSES:
                     payload = json.dumps(end_payload(job))
                     yield ServerSentEvent(data=payload, event="end", id=str(sent + 1))

@@ -53,6 +53,7 @@ def json_safe(value: Any) -> Any:
 def progress_of(record: dict[str, Any], elapsed_s: float) -> dict[str, Any]:
     """The live-progress summary of one iteration record."""
     return {
+        "phase": "optimizing",
         "iteration": record.get("iteration"),
         "cost": record.get("cost"),
         "max_state_change": record.get("max_state_change"),
@@ -107,6 +108,27 @@ class _Attempt:
             return
         if self.notify is not None:
             self.notify(self.job_id, "iteration")
+
+    def on_phase(self, phase: str) -> None:
+        """Store that the attempt entered ``phase`` (compiling, optimizing, verifying), keeping
+        the last iteration's figures, and wake the job's event streams."""
+        last = progress_of(self.history[-1], self.elapsed()) if self.history else {"iteration": 0}
+        progress = {**last, "phase": phase, "elapsed_s": round(self.elapsed(), 6)}
+        try:
+            with self.database.session() as session:
+                owned = repository.record_progress(
+                    session, self.job_id, self.attempt, progress, self.lease_s
+                )
+            if not owned:
+                self.stop_requested = True
+        except self.passthrough:
+            raise
+        except Exception:  # a lost progress write must not kill the solve
+            self.write_errors += 1
+            log.exception("job %s: could not store its phase %s", self.job_id, phase)
+            return
+        if self.notify is not None:
+            self.notify(self.job_id, "progress")
 
     def should_stop(self) -> bool:
         if self.elapsed() > self.limits.solve_s:
@@ -181,7 +203,41 @@ def _default_solve() -> SolveFn:
     return solve_problem
 
 
-def _finish(attempt: _Attempt, outcome: Outcome) -> bool:
+def _cancelled_after_the_solve(outcome: Outcome) -> Outcome:
+    """``outcome`` turned into ``cancelled``: the cancel was accepted before it was stored, so the
+    job ends as the client was told (202), with the finished result kept for the record."""
+    message = f"cancelled on request after the solve had ended {outcome.status}; its result is kept"
+    result = dict(outcome.result) if outcome.result is not None else None
+    if result is not None:
+        result["status"] = JobStatus.CANCELLED.value
+        result["failure"] = {"code": "cancelled", "message": message}
+    return dataclasses.replace(
+        outcome,
+        status=JobStatus.CANCELLED.value,
+        result=result,
+        error_code="cancelled",
+        error_message=message,
+    )
+
+
+def _finish(attempt: _Attempt, outcome: Outcome) -> str | None:
+    """Store the outcome if this attempt still owns the job; a cancel accepted meanwhile wins.
+
+    The write of any outcome but ``cancelled`` requires that no cancel was requested, and the
+    cancel request requires a job still active: the two conditional updates serialize, so a
+    DELETE answered 202 always ends the job ``cancelled``. Returns the status stored, or
+    ``None`` when the attempt no longer owns the job.
+    """
+    with attempt.database.session() as session:
+        if _store(session, attempt, outcome):
+            return outcome.status
+        if outcome.status == JobStatus.CANCELLED:
+            return None
+        cancelled = _cancelled_after_the_solve(outcome)
+        return cancelled.status if _store(session, attempt, cancelled) else None
+
+
+def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
     last = outcome.history[-1] if outcome.history else None
     values: dict[str, Any] = {
         "result": outcome.result,
@@ -192,15 +248,15 @@ def _finish(attempt: _Attempt, outcome: Outcome) -> bool:
     }
     if last is not None:
         values["progress"] = progress_of(last, attempt.elapsed())
-    with attempt.database.session() as session:
-        return repository.transition(
-            session,
-            attempt.job_id,
-            to=outcome.status,
-            allowed_from=[JobStatus.RUNNING.value],
-            attempt=attempt.attempt,
-            values=values,
-        )
+    return repository.transition(
+        session,
+        attempt.job_id,
+        to=outcome.status,
+        allowed_from=[JobStatus.RUNNING.value],
+        attempt=attempt.attempt,
+        values=values,
+        unless_cancel_requested=outcome.status != JobStatus.CANCELLED,
+    )
 
 
 def execute_job(
@@ -242,6 +298,7 @@ def execute_job(
     attempt.heartbeat = Heartbeat(database, job_id, claim.attempt, settings.lease_s)
     attempt.heartbeat.start()
     try:
+        _load_solver(attempt)
         outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
         try:
             stored = _finish(attempt, outcome)
@@ -250,12 +307,32 @@ def execute_job(
     finally:
         attempt.heartbeat.stop()
     if stored:
-        log.info("job %s: attempt %d stored outcome %s", job_id, attempt.attempt, outcome.status)
+        log.info("job %s: attempt %d stored outcome %s", job_id, attempt.attempt, stored)
     else:
         log.warning("job %s: attempt %d no longer owns the job", job_id, attempt.attempt)
     if notify is not None:
         notify(job_id, "end")
-    return outcome.status
+    return stored or outcome.status
+
+
+def _load_solver(attempt: _Attempt) -> None:
+    """Load the solver's compiled kernels if this process has not yet; the first load after an
+    install compiles them (about a minute), which the job's progress says (phase ``compiling``).
+    The job's time limit starts after it."""
+    from worker.solver import dynamics_compiled
+
+    if dynamics_compiled.is_warm():
+        return
+    attempt.on_phase("compiling")
+    try:
+        seconds = dynamics_compiled.warm_up()
+    except attempt.passthrough:
+        raise
+    except Exception:  # the solve reports the problem if it needs the kernels
+        log.exception("job %s: the solver kernels could not be loaded", attempt.job_id)
+        return
+    log.info("job %s: solver kernels loaded in %.1f s", attempt.job_id, seconds)
+    attempt.started = time.monotonic()
 
 
 def _solve(
@@ -278,7 +355,12 @@ def _solve(
             None,
         )
     try:
-        result = solve(problem, on_iteration=attempt.on_iteration, should_stop=attempt.should_stop)
+        result = solve(
+            problem,
+            on_iteration=attempt.on_iteration,
+            should_stop=attempt.should_stop,
+            on_phase=attempt.on_phase,
+        )
     except timeout_exceptions:
         return Outcome(
             JobStatus.TIMED_OUT.value,

@@ -12,7 +12,13 @@ from typing import Any
 
 import pytest
 
-from tests.integration.harness import SCENARIO, ApiServer, ServiceClient, long_job
+from tests.integration.harness import (
+    SCENARIO,
+    ApiServer,
+    ServiceClient,
+    cancel_during_verification,
+    long_job,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -68,6 +74,8 @@ def test_scenario_job_runs_without_a_broker(client: ServiceClient, scenario: str
     assert [e["event"] for e in events][-1] == "end"
     iterations = [e["data"]["iteration"] for e in events if e["event"] == "iteration"]
     assert iterations == list(range(1, len(iterations) + 1))
+    phases = [e["data"]["phase"] for e in events if e["event"] == "phase"]
+    assert phases[-1] == "verifying" and set(phases) <= {"compiling", "optimizing", "verifying"}
     assert events[-1]["data"]["status"] == "succeeded"
     result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
     assert result["status"] == "succeeded"
@@ -88,6 +96,10 @@ def test_failure_and_cancellation(client: ServiceClient, scenario: str) -> None:
     done = client.wait_finished(running["id"], timeout=30)
     assert done["status"] == "cancelled"
     assert client.http.get(f"/v1/jobs/{running['id']}/history").json()["iterations"]
+
+
+def test_cancel_during_the_verification_stops_it(client: ServiceClient, scenario: str) -> None:
+    cancel_during_verification(client, scenario)
 
 
 def test_restart_keeps_jobs_and_resumes_unfinished_ones(

@@ -46,6 +46,32 @@ def long_job(scenario: str) -> dict[str, Any]:
     return {"scenario": scenario, "method": method}
 
 
+def verification_job(scenario: str) -> dict[str, Any]:
+    """A job whose verification takes many seconds (1000 nodes) after three quick iterations."""
+    return {"scenario": scenario, "method": {"nodes": 1000, "max_iterations": 3}}
+
+
+def verifying(job: dict[str, Any]) -> bool:
+    """Whether the job's attempt is verifying its answer."""
+    return job["status"] == "running" and (job["progress"] or {}).get("phase") == "verifying"
+
+
+def cancel_during_verification(client: ServiceClient, scenario: str) -> None:
+    """Cancel a job while it verifies: 202, then ``cancelled`` with the verification cut short
+    and the history kept (a verification that ran on would leave its report)."""
+    job = client.submit(verification_job(scenario))
+    client.wait_for(job["id"], verifying, 180, "the verification phase")
+    response = client.http.delete(f"/v1/jobs/{job['id']}")
+    assert response.status_code == 202, response.text
+    done = client.wait_finished(job["id"], timeout=60)
+    assert (done["status"], done["error"]["code"]) == ("cancelled", "cancelled")
+    result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
+    assert result["status"] == "cancelled"
+    assert result["verification"] is None
+    assert "during the verification" in result["failure"]["message"]
+    assert len(result["history"]) == 3
+
+
 def free_port() -> int:
     """A TCP port on the loopback interface that nothing listens on right now."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:

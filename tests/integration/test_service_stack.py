@@ -20,6 +20,7 @@ from tests.integration.harness import (
     ApiServer,
     ServiceClient,
     ServiceProcess,
+    cancel_during_verification,
     long_job,
 )
 
@@ -118,6 +119,10 @@ def test_cancel_a_queued_and_a_running_job(client: ServiceClient, scenario: str)
         assert client.job(queued["id"])["attempts"] == 0  # its late delivery did not run it
     finally:
         _cancel_and_wait(client, running["id"])
+
+
+def test_cancel_during_the_verification_stops_it(client: ServiceClient, scenario: str) -> None:
+    cancel_during_verification(client, scenario)
 
 
 def test_own_time_limit_ends_timed_out_with_history(client: ServiceClient, scenario: str) -> None:

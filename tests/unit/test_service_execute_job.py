@@ -66,7 +66,9 @@ def scripted(
 ) -> Callable[..., dict[str, Any]]:
     """A solve that emits ``iterations`` records, honoring ``should_stop`` like the real one."""
 
-    def solve(problem: Any, *, on_iteration: Any, should_stop: Any) -> dict[str, Any]:
+    def solve(
+        problem: Any, *, on_iteration: Any, should_stop: Any, on_phase: Any = None
+    ) -> dict[str, Any]:
         history: list[dict[str, Any]] = []
         for k in range(1, iterations + 1):
             if should_stop():

@@ -16,10 +16,13 @@ from worker.solver.objectives import UNITS
 from worker.solver.problem import build_problem
 from worker.solver.result import provenance, sanitize, trajectory_columns, validated
 from worker.solver.scp.history import IterationRecord
-from worker.solver.verification import verify
+from worker.solver.verification import VerificationStoppedError, verify
 
 IterationCallback = Callable[[dict[str, Any]], None]
 StopCheck = Callable[[], bool]
+PhaseCallback = Callable[[str], None]
+"""Told ``"optimizing"`` when the SCP iterations start and ``"verifying"`` when the propagation
+of the answer starts."""
 
 _STATUS = {
     "converged": "succeeded",
@@ -50,19 +53,39 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
     return reasons
 
 
+def _objective(terms: dict[str, float], report: dict[str, Any] | None) -> dict[str, Any]:
+    """The result's objective entry: the method's terms, and the propagated heat load when the
+    objective is the heat load and the verification ran."""
+    single = len(terms) == 1
+    name = next(iter(terms)) if single else "weighted_sum"
+    propagated = (
+        report["heat_load_J_m2"] if report is not None and name == "min_heat_load" else None
+    )
+    return {
+        "name": name,
+        "value": next(iter(terms.values())) if single else None,
+        "units": UNITS.get(name, "mixed"),
+        "propagated_value": propagated,
+        "terms": terms,
+    }
+
+
 def solve_problem(
     problem: ProblemDocument,
     *,
     on_iteration: IterationCallback | None = None,
     should_stop: StopCheck | None = None,
+    on_phase: PhaseCallback | None = None,
 ) -> dict[str, Any]:
     """Solve ``problem`` with its selected method and return the JSON-ready result document.
 
     ``on_iteration`` receives each per-iteration history record as soon as it exists;
-    ``should_stop`` is polled once per SCP iteration (a true answer ends the solve as
-    ``cancelled`` with the history so far). Solver failures (infeasible, diverged, time
-    limit, numerical trouble, failed verification) come back as a result with ``status``
-    ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only programming errors raise.
+    ``should_stop`` is polled once per SCP iteration and every fraction of a second during the
+    verification (a true answer ends the solve as ``cancelled`` with the history so far);
+    ``on_phase`` hears when optimization and verification start. Solver failures (infeasible,
+    diverged, time limit, numerical trouble, failed verification) come back as a result with
+    ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only programming
+    errors raise.
     """
     start = time.perf_counter()
     method = problem.method.name
@@ -83,6 +106,8 @@ def solve_problem(
         if on_iteration is not None:
             on_iteration(sanitize(record.as_dict()))
 
+    if on_phase is not None:
+        on_phase("optimizing")
     scp_start = time.perf_counter()
     outcome = METHODS[method].run(model, problem.method, forward, should_stop)
     wall = time.perf_counter() - scp_start
@@ -102,22 +127,25 @@ def solve_problem(
     verification_s = 0.0
     if outcome.trajectory is not None:
         traj = outcome.trajectory
-        v_start = time.perf_counter()
-        report = verify(model, traj)
-        verification_s = time.perf_counter() - v_start
         document["trajectory"] = trajectory_columns(model, traj)
+        if on_phase is not None:
+            on_phase("verifying")
+        v_start = time.perf_counter()
+        try:
+            report: dict[str, Any] | None = verify(model, traj, should_stop=should_stop)
+        except VerificationStoppedError:
+            report = None
+        verification_s = time.perf_counter() - v_start
         document["verification"] = report
-        terms = outcome.objective_terms
-        single = len(terms) == 1
-        name = next(iter(terms)) if single else "weighted_sum"
-        document["objective"] = {
-            "name": name,
-            "value": next(iter(terms.values())) if single else None,
-            "units": UNITS.get(name, "mixed"),
-            "propagated_value": report["heat_load_J_m2"] if name == "min_heat_load" else None,
-            "terms": terms,
-        }
-        if status == "succeeded" and not report["feasible"]:
+        document["objective"] = _objective(outcome.objective_terms, report)
+        if report is None:
+            document["status"] = "cancelled"
+            document["failure"] = {
+                "code": "cancelled",
+                "message": "stopped during the verification; the trajectory is the last "
+                "iterate and was not verified",
+            }
+        elif status == "succeeded" and not report["feasible"]:
             document["status"] = "failed"
             document["failure"] = {
                 "code": "verification_failed",

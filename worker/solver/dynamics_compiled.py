@@ -523,6 +523,11 @@ def lagrangian_hessian_kernel(
 _warmed = False
 
 
+def is_warm() -> bool:
+    """Whether this process has loaded (or compiled) the kernels already."""
+    return _warmed
+
+
 def warm_up() -> float:
     """Compile every kernel (or load it from numba's on-disk cache) on a tiny case; seconds taken.
 

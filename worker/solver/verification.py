@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
@@ -28,6 +30,34 @@ from worker.solver.scalar_rates import time_rates
 
 Array = np.ndarray
 GridKind = Literal["energy", "time"]
+StopCheck = Callable[[], bool]
+
+STOP_POLL_INTERVAL_S = 0.2
+"""How often a propagation asks its stop check (wall seconds): a cancel or a time limit ends a
+long verification within about this long, without a database read per right-hand side."""
+
+
+class VerificationStoppedError(Exception):
+    """The stop check answered true during the propagation (cancel or time limit)."""
+
+
+def _poller(should_stop: StopCheck | None) -> Callable[[], None]:
+    """A cheap call for the right-hand side: asks ``should_stop`` at most every poll interval and
+    raises :class:`VerificationStoppedError` when it answers true."""
+    if should_stop is None:
+        return lambda: None
+    due = time.monotonic() + STOP_POLL_INTERVAL_S
+
+    def poll() -> None:
+        nonlocal due
+        now = time.monotonic()
+        if now < due:
+            return
+        due = now + STOP_POLL_INTERVAL_S
+        if should_stop():
+            raise VerificationStoppedError
+
+    return poll
 
 
 @dataclass(frozen=True)
@@ -88,16 +118,27 @@ def _to_si(problem: EntryProblem, y: Array) -> dict[str, float]:
 
 
 def propagate(
-    problem: EntryProblem, traj: OptimizedTrajectory, *, rtol: float = 1e-10, atol: float = 1e-12
+    problem: EntryProblem,
+    traj: OptimizedTrajectory,
+    *,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    should_stop: StopCheck | None = None,
 ) -> Any:
-    """Integrate the time-domain dynamics under the trajectory's bank profile; scipy's solution."""
+    """Integrate the time-domain dynamics under the trajectory's bank profile; scipy's solution.
+
+    ``should_stop`` is asked every :data:`STOP_POLL_INTERVAL_S`; a true answer raises
+    :class:`VerificationStoppedError`.
+    """
     forces, omega = problem.forces, problem.omega
     grid = traj.grid
     alpha_nodes = traj.alpha_deg
     by_energy = traj.grid_kind == "energy"
     u = np.zeros((1, 2))
+    poll = _poller(should_stop)
 
     def rhs(t: float, y: Array) -> Array:
+        poll()
         s = _energy(y) if by_energy else t
         sigma = bank_profile(traj, s)
         if alpha_nodes is None:  # scheduled alpha: the scalar fast path
@@ -141,10 +182,14 @@ def verify(
     traj: OptimizedTrajectory,
     tolerances: VerificationTolerances | None = None,
     samples_per_interval: int = 20,
+    should_stop: StopCheck | None = None,
 ) -> dict[str, Any]:
-    """Propagate ``traj``'s controls and report errors, path maxima, zone clearance, feasibility."""
+    """Propagate ``traj``'s controls and report errors, path maxima, zone clearance, feasibility.
+
+    Raises :class:`VerificationStoppedError` when ``should_stop`` answers true while propagating.
+    """
     tol = tolerances or VerificationTolerances()
-    sol = propagate(problem, traj)
+    sol = propagate(problem, traj, should_stop=should_stop)
     sc = problem.scales
     t_final = float(sol.t[-1])
     y_final = sol.y[:, -1]
