@@ -44,15 +44,35 @@ def _readable(error: Any) -> str:
     known = _MESSAGES.get(error["type"])
     if known is not None:
         return known
+    ctx = error.get("ctx") or {}
+    if error["type"] == "union_tag_invalid":
+        return f"unknown value {ctx.get('tag')!r}: must be one of {ctx.get('expected_tags')}"
+    if error["type"] == "union_tag_not_found":
+        return "required field is missing: it selects which kind of object this is"
     message = str(error["msg"])
     for prefix in ("Value error, ", "Assertion failed, "):
         message = message.removeprefix(prefix)
     return message
 
 
+_TAG_ERRORS = frozenset({"union_tag_invalid", "union_tag_not_found"})
+"""Errors of a discriminated union's tag: pydantic places them at the union, not at its tag."""
+
+
+def _location(error: Any) -> list[str | int]:
+    """Where the error is; a union's missing or unknown tag is placed at the tag itself."""
+    loc = list(error["loc"])
+    tag = (error.get("ctx") or {}).get("discriminator")
+    if error["type"] in _TAG_ERRORS and isinstance(tag, str):
+        loc.append(tag.strip("'\""))
+    return loc
+
+
 def issues_from_validation_error(exc: ValidationError) -> list[FieldIssue]:
     """Every error of ``exc`` as a ``FieldIssue`` with a dotted field path, in pydantic's order."""
     return [
-        FieldIssue(field=dotted_path(error["loc"]), message=_readable(error), code=error["type"])
+        FieldIssue(
+            field=dotted_path(_location(error)), message=_readable(error), code=error["type"]
+        )
         for error in exc.errors(include_url=False)
     ]

@@ -345,8 +345,8 @@ def test_unknown_method_name_is_rejected() -> None:
     document = reference()
     document["method"] = {"name": "magic"}
     found = issues_of(document)
-    assert_issue(found, "method", "'magic'")
-    assert_issue(found, "method", "energy-scp")
+    assert_issue(found, "method.name", "'magic'")
+    assert_issue(found, "method.name", "energy-scp")
 
 
 def test_duplicate_waypoint_order_is_rejected() -> None:
@@ -431,3 +431,18 @@ def test_second_order_step_needs_the_exact_maps() -> None:
     assert_issue(issues_of(document), "method.second_order", "needs discretization exact_foh")
     document["method"]["second_order"] = False
     ProblemDocument.model_validate(document)
+
+
+def test_a_union_tag_error_names_the_tag_field_and_the_allowed_values() -> None:
+    from app.schemas import issues_from_validation_error
+    from worker.solver.scenarios import get_scenario
+
+    for atmosphere, code in (({"model": "us77"}, "union_tag_invalid"), ({}, "union_tag_not_found")):
+        raw = copy.deepcopy(get_scenario("rlv-min-heat-load").problem)
+        raw["planet"]["atmosphere"] = atmosphere
+        with pytest.raises(ValidationError) as caught:
+            ProblemDocument.model_validate(raw)
+        (issue,) = issues_from_validation_error(caught.value)
+        assert (issue.field, issue.code) == ("planet.atmosphere.model", code)
+        if code == "union_tag_invalid":
+            assert "'us77'" in issue.message and "'exponential', 'us76'" in issue.message
