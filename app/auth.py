@@ -15,7 +15,7 @@ import secrets
 from dataclasses import dataclass
 
 from app.errors import ApiError
-from app.settings import MIN_SECRET_LENGTH, WEAK_SECRETS, Settings
+from app.settings import MIN_SECRET_LENGTH, Settings, secret_problem
 from app.storage import repository
 from app.storage.models import ApiKey
 from app.storage.session import Database
@@ -52,11 +52,13 @@ def hash_key(key: str, secret: str) -> str:
 
 def require_secret(settings: Settings) -> str:
     """The server secret, or ``ValueError`` when it is missing or a well-known default."""
-    secret = settings.api_key_secret
-    if secret.strip().lower() in WEAK_SECRETS or len(secret) < MIN_SECRET_LENGTH:
+    secret = settings.api_key_secret.get_secret_value()
+    problem = secret_problem(secret)
+    if problem is not None:
         raise ValueError(
-            f"TRAJOPT_API_KEY_SECRET must be a random value of at least {MIN_SECRET_LENGTH} "
-            "characters (e.g. `openssl rand -hex 32`), the same for the API and this command"
+            f"TRAJOPT_API_KEY_SECRET {problem}; it must be a random value of at least "
+            f"{MIN_SECRET_LENGTH} characters (e.g. `openssl rand -hex 32`), the same for the API "
+            "and this command"
         )
     return secret
 
@@ -86,7 +88,7 @@ def authenticate(database: Database, settings: Settings, presented: str | None) 
         raise _unauthorized("missing_api_key", f"send an API key in the {API_KEY_HEADER} header")
     if len(presented) > MAX_KEY_LENGTH:
         raise _unauthorized("invalid_api_key", "the API key is not valid")
-    digest = hash_key(presented, settings.api_key_secret)
+    digest = hash_key(presented, settings.api_key_secret.get_secret_value())
     with database.reader() as session:
         row = repository.find_api_key(session, digest)
     if row is None or not hmac.compare_digest(row.key_hash, digest):

@@ -9,11 +9,11 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 from urllib.parse import urlsplit
 
-from pydantic import AliasChoices, Field, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import AliasChoices, Field, SecretStr, ValidationError, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict, SettingsError
 
 AuthMode = Literal["single-user", "api-keys"]
 
@@ -34,6 +34,22 @@ WEAK_SECRETS: frozenset[str] = frozenset(
     }
 )
 """Values refused wherever a secret is required (placeholders and well-known defaults)."""
+
+SECRET_FIELDS: frozenset[str] = frozenset({"api_key_secret", "database_url", "broker_url"})
+"""Settings whose values no message shows (the secret, and URLs that may carry a password)."""
+
+_SHOWN_VALUE_CHARS = 60
+
+
+def secret_problem(secret: str) -> str | None:
+    """Why ``secret`` is refused (never quoting it), or ``None`` when it is acceptable."""
+    if not secret.strip():
+        return "is not set"
+    if secret.strip().lower() in WEAK_SECRETS:
+        return "is a well-known default"
+    if len(secret) < MIN_SECRET_LENGTH:
+        return "is too short"
+    return None
 
 
 def default_data_dir() -> Path:
@@ -88,8 +104,8 @@ class Settings(BaseSettings):
         default="single-user",
         description="single-user: every request acts as default_owner; api-keys: X-API-Key.",
     )
-    api_key_secret: str = Field(
-        default="",
+    api_key_secret: SecretStr = Field(
+        default=SecretStr(""),
         description="Server secret keyed into the stored API-key hashes (HMAC-SHA-256); "
         "required in api-keys mode.",
     )
@@ -128,11 +144,11 @@ class Settings(BaseSettings):
     def _refuse_default_secrets(self) -> Settings:
         if self.auth_mode != "api-keys":
             return self
-        secret = self.api_key_secret
-        if secret.strip().lower() in WEAK_SECRETS or len(secret) < MIN_SECRET_LENGTH:
+        problem = secret_problem(self.api_key_secret.get_secret_value())
+        if problem is not None:
             raise ValueError(
-                "TRAJOPT_API_KEY_SECRET must be set to a random value of at least "
-                f"{MIN_SECRET_LENGTH} characters in api-keys mode (e.g. `openssl rand -hex 32`)"
+                f"TRAJOPT_API_KEY_SECRET {problem}; api-keys mode needs a random value of at "
+                f"least {MIN_SECRET_LENGTH} characters (e.g. `openssl rand -hex 32`)"
             )
         password = urlsplit(self.database_url).password if "://" in self.database_url else None
         if password is not None and password.lower() in WEAK_SECRETS:
@@ -174,3 +190,73 @@ def normalize_database_url(url: str) -> str:
 def get_settings() -> Settings:
     """The process-wide settings read once from the environment."""
     return Settings()
+
+
+class ConfigurationError(Exception):
+    """The environment's settings are invalid; ``problems`` holds one line per bad setting."""
+
+    def __init__(self, problems: list[str]) -> None:
+        super().__init__("; ".join(problems))
+        self.problems = problems
+
+
+def _env_set(name: str) -> bool:
+    """Whether the environment sets ``name`` (names are matched case-insensitively)."""
+    lowered = name.lower()
+    return any(key.lower() == lowered for key in os.environ)
+
+
+def env_name(field: str) -> str:
+    """The environment variable that sets ``field`` (the one actually set, among aliases)."""
+    info = Settings.model_fields.get(field)
+    if info is None:  # already an alias, e.g. DATABASE_URL
+        return field.upper()
+    alias = info.validation_alias
+    if isinstance(alias, AliasChoices):
+        names = [c.upper() for c in alias.choices if isinstance(c, str) and c != field]
+        given = [n for n in names if _env_set(n)]
+        return (given or names)[0]
+    return f"TRAJOPT_{field.upper()}"
+
+
+def _shown(value: Any) -> str | None:
+    """A given value as a message quotes it (cut when long); ``None`` for non-scalars."""
+    if not isinstance(value, str | int | float) or isinstance(value, bool):
+        return None
+    text = str(value)
+    if len(text) > _SHOWN_VALUE_CHARS:
+        text = text[: _SHOWN_VALUE_CHARS - 3] + "..."
+    return repr(text)
+
+
+def settings_problems(exc: ValidationError) -> list[str]:
+    """One line per invalid setting: its environment variable and the reason.
+
+    The value given is shown only for settings outside ``SECRET_FIELDS``; ``str(exc)`` is never
+    used, since pydantic's own text carries every input, secrets included.
+    """
+    problems: list[str] = []
+    for error in exc.errors(include_url=False, include_context=False):
+        message = str(error.get("msg", "invalid value")).removeprefix("Value error, ")
+        loc = error.get("loc") or ()
+        if not loc:  # model-level checks name their variables themselves
+            line = message
+        else:
+            field = str(loc[0])
+            line = f"{env_name(field)}: {message[:1].lower()}{message[1:]}"
+            shown = None if field in SECRET_FIELDS else _shown(error.get("input"))
+            if shown is not None:
+                line += f" (got {shown})"
+        if line not in problems:
+            problems.append(line)
+    return problems
+
+
+def load_settings() -> Settings:
+    """The process-wide settings; ``ConfigurationError`` (clean, secret-free) when invalid."""
+    try:
+        return get_settings()
+    except ValidationError as exc:
+        raise ConfigurationError(settings_problems(exc)) from None
+    except SettingsError as exc:
+        raise ConfigurationError([str(exc)]) from None
