@@ -1,38 +1,197 @@
 """Command-line front end of the solver core: ``trajopt scenarios`` and ``trajopt solve``.
 
 Runs in-process with no service, broker or database. Exit codes: 0 solved and verified,
-1 the solve failed (reason printed), 2 the problem was invalid or could not be read.
+1 the solve failed (reason printed), 2 the problem or the output path was invalid or could not
+be read or written. Every refusal is one ``error: …`` line on stderr (one per issue for an
+invalid document), checked before any work starts.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pydantic import ValidationError
+from worker.solver.scenarios import (
+    Scenario,
+    UnknownScenarioError,
+    get_scenario,
+    list_scenarios,
+    shown_name,
+)
 
-from app.schemas import ProblemDocument, issues_from_validation_error
-from worker.solver.api import solve_problem
-from worker.solver.methods import check_support
-from worker.solver.scenarios import get_scenario, list_scenarios
+if TYPE_CHECKING:
+    from app.schemas import FieldIssue
+
+MAX_ISSUE_LINES = 10
+"""Issues of an invalid document printed at most; the rest are counted in one more line."""
 
 
-def _load(source: str) -> dict[str, Any]:
+class InputError(Exception):
+    """Input the command refuses (exit 2); the message is one line naming the thing and why."""
+
+
+def looks_like_path(source: str) -> bool:
+    """Whether ``source`` is meant as a file rather than a scenario name."""
+    separators = {"/", os.sep, os.altsep or "/"}
+    return source.endswith(".json") or any(sep in source for sep in separators)
+
+
+def _json_kind(value: Any) -> str:
+    """How a JSON value is named in a message ("an array", "a number", ...)."""
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, int | float):
+        return "a number"
+    return "null" if value is None else type(value).__name__
+
+
+def os_reason(exc: OSError) -> str:
+    """The short reason of an ``OSError`` (``No such file or directory``), without the path."""
+    return exc.strerror or str(exc) or type(exc).__name__
+
+
+def read_problem_file(source: str) -> dict[str, Any]:
+    """The problem document in the file ``source`` (a scenario file gives its ``problem``)."""
     path = Path(source)
-    if path.suffix == ".json" or path.exists():
-        raw = json.loads(path.read_text(encoding="utf-8"))
-        if isinstance(raw, dict) and "problem" in raw and "vehicle" not in raw:
-            raw = raw["problem"]  # a scenario file
+    if _is(path, "is_dir"):
+        raise InputError(f"{source} is a directory, not a problem file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"no such file: {source}") from None
+    except PermissionError:
+        raise InputError(f"cannot read {source}: permission denied") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{source}: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {source}: {os_reason(exc)}") from None
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"{source}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
+        ) from None
+    except RecursionError:
+        raise InputError(f"{source}: invalid JSON: nested too deeply") from None
+    if isinstance(raw, dict) and "problem" in raw and "vehicle" not in raw:
+        raw = raw["problem"]  # a scenario file
         if not isinstance(raw, dict):
-            raise ValueError(f"{source}: a problem document must be a JSON object")
-        return raw
-    return dict(get_scenario(source).problem)
+            raise InputError(f'{source}: "problem" must be a JSON object, not {_json_kind(raw)}')
+    if not isinstance(raw, dict):
+        raise InputError(
+            f"{source}: a problem document must be a JSON object, not {_json_kind(raw)}"
+        )
+    return raw
+
+
+def unknown_scenario_message(exc: UnknownScenarioError) -> str:
+    """The command line's one-line answer to a scenario name that does not exist."""
+    message = f"unknown scenario {shown_name(exc.name)!r}"
+    if exc.suggestions:
+        message += "; did you mean " + " or ".join(repr(s) for s in exc.suggestions) + "?"
+    return message + " (`trajopt scenarios` lists them)"
+
+
+def _is(path: Path, test: str) -> bool:
+    """``path.is_file()`` / ``is_dir()`` / ``exists()``, False for a name the OS refuses."""
+    try:
+        return bool(getattr(path, test)())
+    except (OSError, ValueError):  # e.g. a name too long
+        return False
+
+
+def load_problem(source: str) -> dict[str, Any]:
+    """The document named by ``source``: a problem or scenario file, else a built-in scenario.
+
+    A name that looks like a path (ends in ``.json`` or has a slash) is always a file, so a
+    missing one is "no such file" rather than an unknown scenario.
+    """
+    path = Path(source)
+    if looks_like_path(source) or _is(path, "is_file"):
+        return read_problem_file(source)
+    try:
+        return dict(get_scenario(source).problem)
+    except UnknownScenarioError as exc:
+        if _is(path, "is_dir"):
+            raise InputError(f"{source} is a directory, not a problem file") from None
+        raise InputError(unknown_scenario_message(exc)) from None
+
+
+def check_output(output: str) -> None:
+    """Refuse an output path the result could not be written to, before any solving."""
+    path = Path(output)
+    if _is(path, "is_dir"):
+        raise InputError(f"output {output} is a directory; give a file name")
+    if _is(path, "exists"):
+        if not os.access(path, os.W_OK):
+            raise InputError(f"cannot write output {output}: permission denied")
+        return
+    parent = path.parent
+    if not _is(parent, "exists"):
+        raise InputError(f"cannot write output {output}: directory {parent} does not exist")
+    if not _is(parent, "is_dir"):
+        raise InputError(f"cannot write output {output}: {parent} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write output {output}: no permission to create files in {parent}")
+
+
+def write_result(output: str, result: dict[str, Any]) -> None:
+    """Write the result document to ``output``; ``InputError`` with the reason when it fails."""
+    text = json.dumps(result, indent=1)
+    try:
+        with open(output, "w", encoding="utf-8") as handle:
+            handle.write(text)
+    except OSError as exc:
+        raise InputError(f"cannot write the result to {output}: {os_reason(exc)}") from None
+
+
+def issue_lines(prefix: str, issues: Sequence[FieldIssue]) -> list[str]:
+    """One ``error:`` line per issue (at most ``MAX_ISSUE_LINES``, then a count of the rest)."""
+    lines = [
+        f"error: {prefix}: {issue.field}: {issue.message}"
+        if issue.field
+        else f"error: {prefix}: {issue.message}"
+        for issue in issues[:MAX_ISSUE_LINES]
+    ]
+    if len(issues) > MAX_ISSUE_LINES:
+        lines.append(f"error: {prefix}: and {len(issues) - MAX_ISSUE_LINES} more issues")
+    return lines
+
+
+def scenario_table(scenarios: Sequence[Scenario]) -> list[str]:
+    """The scenarios as an aligned table (widths from the data), each source under its title."""
+    header = ("NAME", "METHOD", "NODES", "TITLE")
+    rows = [header]
+    for s in scenarios:
+        method = s.problem.get("method") or {}
+        rows.append((s.name, str(method.get("name", "-")), str(method.get("nodes", "-")), s.title))
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header) - 1)]
+    indent = sum(widths) + 2 * len(widths)
+    lines = []
+    for i, row in enumerate(rows):
+        cells = [
+            row[0].ljust(widths[0]),
+            row[1].ljust(widths[1]),
+            row[2].rjust(widths[2]),
+            row[3],
+        ]
+        lines.append("  ".join(cells))
+        if i:
+            lines.append(" " * indent + f"source: {scenarios[i - 1].source}")
+    return lines
 
 
 def _progress(record: dict[str, Any]) -> None:
+    """One progress line per SCP iteration on stderr."""
     change = record["max_state_change"]
     value = record.get("objective_value")
     shown = f"{value:.6g}" if isinstance(value, float) else "-"
@@ -48,6 +207,7 @@ def _progress(record: dict[str, Any]) -> None:
 
 
 def _summary(result: dict[str, Any]) -> str:
+    """The result in a few lines: status, reason, objective, verification, timing."""
     lines = [f"status: {result['status']}"]
     if result.get("failure"):
         lines.append(f"reason: {result['failure']['code']}: {result['failure']['message']}")
@@ -70,41 +230,63 @@ def _summary(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the ``scenarios`` or ``solve`` subcommand; returns the exit code."""
-    if args.command == "scenarios":
-        for s in list_scenarios():
-            print(f"{s.name:32s} {s.title}")
-            print(f"{'':32s} source: {s.source}")
-        return 0
-    try:
-        raw = _load(args.problem)
-    except (OSError, ValueError, KeyError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+def _apply_overrides(raw: dict[str, Any], args: argparse.Namespace) -> None:
+    """Put ``--method`` and ``--nodes`` into the document's method (a new method: defaults)."""
     if args.method or args.nodes is not None:
-        method = dict(raw.get("method") or {})
+        method = raw.get("method")
+        method = dict(method) if isinstance(method, dict) else {}
         if args.method and method.get("name") != args.method:
             method = {"name": args.method}
         if args.nodes is not None:
             method["nodes"] = args.nodes
         raw["method"] = method
+
+
+def _solve(args: argparse.Namespace) -> int:
+    """Check the output path, load and validate the problem, solve, report; the exit code."""
+    if args.output:
+        check_output(args.output)
+    raw = load_problem(args.problem)
+    _apply_overrides(raw, args)
+
+    from pydantic import ValidationError
+
+    from app.schemas import ProblemDocument, issues_from_validation_error
+    from worker.solver.methods import check_support
+
     try:
         doc = ProblemDocument.model_validate(raw)
     except ValidationError as exc:
-        print("error: invalid problem:", file=sys.stderr)
-        for issue in issues_from_validation_error(exc):
-            print(f"  {issue.field}: {issue.message}", file=sys.stderr)
+        for line in issue_lines(
+            f"invalid problem {args.problem}", issues_from_validation_error(exc)
+        ):
+            print(line, file=sys.stderr)
         return 2
     issues = check_support(doc)
     if issues:
-        print(f"error: method {doc.method.name} cannot solve this problem:", file=sys.stderr)
-        for issue in issues:
-            print(f"  {issue.field}: {issue.message}", file=sys.stderr)
+        for line in issue_lines(f"method {doc.method.name} cannot solve this problem", issues):
+            print(line, file=sys.stderr)
         return 2
+
+    from worker.solver.api import solve_problem
+
     result = solve_problem(doc, on_iteration=None if args.quiet else _progress)
+    code = 0 if result["status"] == "succeeded" else 1
+    print(_summary(result), flush=True)
     if args.output:
-        Path(args.output).write_text(json.dumps(result, indent=1), encoding="utf-8")
+        write_result(args.output, result)
         print(f"result written to {args.output}", file=sys.stderr)
-    print(_summary(result))
-    return 0 if result["status"] == "succeeded" else 1
+    return code
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the ``scenarios`` or ``solve`` subcommand; returns the exit code."""
+    if args.command == "scenarios":
+        for line in scenario_table(list_scenarios()):
+            print(line)
+        return 0
+    try:
+        return _solve(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
