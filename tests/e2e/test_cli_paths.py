@@ -335,7 +335,7 @@ def test_nodes_out_of_range_and_not_a_number(trajopt: Trajopt) -> None:
 
 def test_an_unknown_method(trajopt: Trajopt) -> None:
     run = trajopt("solve", "rlv-min-heat-load", "--method", "newton")
-    assert_stderr(run, 2, "method: ", "'energy-scp', 'foh-ptr'")
+    assert_stderr(run, 2, "invalid problem rlv-min-heat-load: method", "'energy-scp', 'foh-ptr'")
 
 
 @pytest.mark.parametrize(
