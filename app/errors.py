@@ -6,6 +6,7 @@ unexpected exceptions into that shape, so clients parse a single format.
 
 from __future__ import annotations
 
+import json
 import logging
 from typing import Any
 
@@ -57,6 +58,67 @@ def not_found(kind: str, ident: str) -> ApiError:
     return ApiError(404, f"{kind}_not_found", f"no {kind} {ident!r}")
 
 
+def malformed_json(error: json.JSONDecodeError) -> ApiError:
+    """400 ``malformed_body`` for a body that is not JSON, naming where decoding stopped."""
+    return ApiError(
+        400,
+        "malformed_body",
+        f"the body is not valid JSON: {error.msg} at line {error.lineno}, column {error.colno} "
+        f"(character {error.pos})",
+    )
+
+
+def malformed_text(error: UnicodeDecodeError) -> ApiError:
+    """400 ``malformed_body`` for a body that is not UTF-8 text, naming the first bad byte."""
+    return ApiError(
+        400,
+        "malformed_body",
+        f"the body is not valid JSON: it is not UTF-8 text ({error.reason} at byte {error.start})",
+    )
+
+
+def undecodable_body(body: bytes | str | None) -> ApiError:
+    """The ``malformed_body`` error of a request body that ``json.loads`` refused."""
+    if isinstance(body, bytes):
+        try:
+            body = body.decode("utf-8")  # JSON is UTF-8 (RFC 8259)
+        except UnicodeDecodeError as exc:
+            return malformed_text(exc)
+    try:
+        json.loads(body or "")
+    except json.JSONDecodeError as exc:
+        return malformed_json(exc)
+    except UnicodeDecodeError as exc:  # json.loads detects UTF-16 and UTF-32 on its own
+        return malformed_text(exc)
+    return ApiError(400, "malformed_body", "the body is not valid JSON")
+
+
+def _body_error(request: Request, exc: RequestValidationError) -> ApiError | None:
+    """FastAPI's errors of a body that is absent, not JSON, or not labelled JSON, or None."""
+    errors = exc.errors()
+    for error in errors:
+        if error.get("type") == "json_invalid":
+            loc = tuple(error.get("loc", ()))
+            pos = loc[1] if len(loc) > 1 and isinstance(loc[1], int) else 0
+            doc = exc.body if isinstance(exc.body, str) else ""
+            message = str((error.get("ctx") or {}).get("error", "invalid JSON"))
+            return malformed_json(json.JSONDecodeError(message, doc, pos))
+    if len(errors) != 1 or tuple(errors[0].get("loc", ())) != ("body",):
+        return None
+    if errors[0].get("type") == "missing":  # no body at all
+        return malformed_json(json.JSONDecodeError("Expecting value", "", 0))
+    if isinstance(errors[0].get("input"), bytes):  # FastAPI reads JSON only if it is labelled so
+        given = request.headers.get("content-type")
+        sent = f"Content-Type: {given}" if given else "no Content-Type"
+        return ApiError(
+            415,
+            "unsupported_media_type",
+            f"the body must be JSON sent with Content-Type: application/json; got {sent}",
+            field="Content-Type",
+        )
+    return None
+
+
 def _dotted(loc: tuple[Any, ...] | list[Any]) -> str:
     parts = [str(p) for p in loc]
     if parts and parts[0] in ("body", "query", "path", "header"):
@@ -73,8 +135,11 @@ async def _api_error(_: Request, exc: Exception) -> JSONResponse:
     )
 
 
-async def _request_validation(_: Request, exc: Exception) -> JSONResponse:
+async def _request_validation(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
+    malformed = _body_error(request, exc)
+    if malformed is not None:
+        return await _api_error(request, malformed)
     issues = [
         {"field": _dotted(e.get("loc", ())), "message": str(e.get("msg")), "code": str(e["type"])}
         for e in exc.errors()
@@ -86,8 +151,11 @@ async def _request_validation(_: Request, exc: Exception) -> JSONResponse:
     )
 
 
-async def _http_error(_: Request, exc: Exception) -> JSONResponse:
+async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
+    cause = exc.__cause__
+    if exc.status_code == 400 and isinstance(cause, UnicodeDecodeError):  # FastAPI's json.loads
+        return await _api_error(request, undecodable_body(cause.object))
     codes = {400: "malformed_body", 404: "not_found", 405: "method_not_allowed"}
     code = codes.get(exc.status_code, f"http_{exc.status_code}")
     return JSONResponse(

@@ -8,6 +8,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.schemas import FieldIssue
+from app.schemas.result import HistoryRecord
 
 JobStatusName = Literal["queued", "running", "succeeded", "failed", "cancelled", "timed_out"]
 
@@ -27,21 +28,7 @@ class ErrorDetail(BaseModel):
 
 
 class ErrorResponse(BaseModel):
-    """The body of every error response."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "error": {
-                        "code": "job_not_found",
-                        "message": f"no job {_JOB_ID!r}",
-                        "field": None,
-                    }
-                }
-            ]
-        }
-    )
+    """The body of every error response (each response in the OpenAPI document has examples)."""
 
     error: ErrorDetail
 
@@ -180,30 +167,11 @@ class JobPage(BaseModel):
 class HistoryView(BaseModel):
     """The convergence history of a job so far (complete once it has finished)."""
 
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "job_id": _JOB_ID,
-                    "status": "running",
-                    "iterations": [
-                        {
-                            "iteration": 1,
-                            "cost": 2.1e7,
-                            "max_state_change": {"altitude_m": 2748.5, "heading_deg": 1.64},
-                            "conic_status": "optimal",
-                            "conic_solve_s": 0.021,
-                            "iteration_wall_s": 0.034,
-                        }
-                    ],
-                }
-            ]
-        }
-    )
-
     job_id: str
     status: JobStatusName
-    iterations: list[dict[str, Any]]
+    iterations: list[HistoryRecord] = Field(
+        ..., description="The current attempt's SCP iterations so far, in order."
+    )
 
 
 class ScenarioSummary(BaseModel):

@@ -8,11 +8,12 @@ from fastapi import APIRouter, Body, Header, Query, Response
 
 from app import jobs_service
 from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep, SubmitterDep
-from app.routes.examples import PROBLEM_EXAMPLES
+from app.routes.examples import HISTORY_EXAMPLES, PROBLEM_EXAMPLES, RESULT_EXAMPLES
 from app.views import ErrorResponse, HistoryView, JobPage, JobStatusName, JobView
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
 
+COMPONENTS = "#/components/schemas"
 _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorResponse}}
 
 
@@ -94,10 +95,18 @@ def get_job(job_id: str, database: DatabaseDep, settings: SettingsDep, owner: Ow
     responses={
         200: {
             "description": "The result document of the solver.",
-            "content": {"application/json": {"schema": {"type": "object"}}},
+            "content": {
+                "application/json": {
+                    "schema": {"$ref": f"{COMPONENTS}/ResultDocument"},
+                    "examples": RESULT_EXAMPLES,
+                }
+            },
         },
         **_NOT_FOUND,
-        409: {"model": ErrorResponse, "description": "Not finished."},
+        409: {
+            "model": ErrorResponse,
+            "description": "Not finished yet, or finished without a result document.",
+        },
     },
     summary="Fetch the result document",
 )
@@ -109,7 +118,13 @@ def get_result(job_id: str, database: DatabaseDep, owner: OwnerDep) -> Response:
 @router.get(
     "/{job_id}/history",
     response_model=HistoryView,
-    responses=_NOT_FOUND,
+    responses={
+        200: {
+            "description": "The iterations so far.",
+            "content": {"application/json": {"examples": HISTORY_EXAMPLES}},
+        },
+        **_NOT_FOUND,
+    },
     summary="Convergence history",
 )
 def get_history(job_id: str, database: DatabaseDep, owner: OwnerDep) -> HistoryView:

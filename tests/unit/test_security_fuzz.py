@@ -29,6 +29,7 @@ from tests.unit.test_service_api import RecordingDispatcher  # noqa: E402
 from tests.unit.test_service_execute_job import scripted  # noqa: E402
 from worker.jobs import execute_job  # noqa: E402
 from worker.limits import TimeLimits  # noqa: E402
+from worker.solver.result import validated  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -54,7 +55,15 @@ class InstantDispatcher(RecordingDispatcher):
     def submit(self, job_id: str, limits: TimeLimits) -> None:
         super().submit(job_id, limits)
         if len(self.submitted) % 2:
-            execute_job(job_id, settings=self.settings, solve=scripted(2))
+            execute_job(job_id, settings=self.settings, solve=contract_solve)
+
+
+def contract_solve(problem: Any, *, on_iteration: Any, should_stop: Any) -> dict[str, Any]:
+    """:func:`scripted`'s solve, its result made a valid ``ResultDocument`` (it is documented)."""
+    result = scripted(2)(problem, on_iteration=on_iteration, should_stop=should_stop)
+    name = str(problem.method.name)
+    objective = {"name": "min_heat_load", "value": result.pop("objective", None), "units": "J/m^2"}
+    return validated({**result, "method": name, "objective": objective})
 
 
 class App:

@@ -150,8 +150,12 @@ def test_invalid_problem_lists_every_bad_field(client: TestClient) -> None:
     assert {"method.nodes", "vehicle.mass_kg", "bogus"} <= fields
     assert all({"field", "message", "code"} == set(i) for i in error["issues"])
     assert client.get("/v1/jobs").json()["total"] == 0
-    assert_error(client.post("/v1/jobs", content=b"[1]"), 422, "invalid_request")
-    assert_error(client.post("/v1/jobs", content=b"{not json"), 422, "invalid_request")
+    as_json = {"Content-Type": "application/json"}
+    assert_error(client.post("/v1/jobs", content=b"[1]", headers=as_json), 422, "invalid_request")
+    assert_error(
+        client.post("/v1/jobs", content=b"{not json", headers=as_json), 400, "malformed_body"
+    )
+    assert_error(client.post("/v1/jobs", content=b"[1]"), 415, "unsupported_media_type")
 
 
 @pytest.mark.parametrize(
