@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -111,23 +110,6 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def check_listen(host: str, port: int) -> None:
-    """Refuse a host and port the API could not listen on (unknown name, in use, no right)."""
-    where = f"{host}:{port}"
-    try:
-        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
-    except (socket.gaierror, UnicodeError) as exc:
-        reason = exc.strerror if isinstance(exc, socket.gaierror) else "not a valid host name"
-        raise CommandError(f"cannot listen on {where}: {reason}") from None
-    family, kind, proto, _, address = infos[0]
-    try:
-        with socket.socket(family, kind, proto) as probe:
-            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn does
-            probe.bind(address)
-    except OSError as exc:
-        raise CommandError(f"cannot listen on {where}: {exc.strerror or exc}") from None
-
-
 def check_database(settings: Settings) -> None:
     """Refuse a database URL that does not parse, and a SQLite folder that cannot be created."""
     from sqlalchemy import make_url
@@ -153,13 +135,15 @@ def check_database(settings: Settings) -> None:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    """``trajopt serve``: settings, port and database checked first, then uvicorn."""
+    """``trajopt serve``: settings and database URL checked, the port bound, then uvicorn."""
     settings = load_settings()
-    check_listen(args.host or settings.host, args.port or settings.port)
     check_database(settings)
-    from app.server import run_server
+    from app.server import BindError, run_server
 
-    run_server(host=args.host, port=args.port)
+    try:
+        run_server(host=args.host, port=args.port)  # binds before it touches any stored job
+    except BindError as exc:
+        raise CommandError(str(exc)) from None
     return EXIT_OK
 
 

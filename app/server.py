@@ -10,7 +10,6 @@ import contextlib
 import errno
 import logging
 import socket
-import sys
 
 import uvicorn
 
@@ -45,16 +44,15 @@ def listen_socket(host: str, port: int) -> socket.socket:
     return sock
 
 
-def run_server(host: str | None = None, port: int | None = None) -> int:
-    """Serve the API on ``host:port`` (defaults from settings) until interrupted; exit code."""
+def run_server(host: str | None = None, port: int | None = None) -> None:
+    """Serve the API on ``host:port`` (defaults from settings) until interrupted.
+
+    Raises :class:`BindError` before anything else when the address cannot be listened on.
+    """
     settings = get_settings()
     host = host or settings.host
     port = port or settings.port
-    try:
-        sock = listen_socket(host, port)
-    except BindError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    sock = listen_socket(host, port)
     shown = "localhost" if host in ("0.0.0.0", "::") else host
     mode = (
         "Celery workers via the configured broker"
@@ -70,7 +68,6 @@ def run_server(host: str | None = None, port: int | None = None) -> int:
     _log_service_messages()
     with sock, contextlib.suppress(KeyboardInterrupt):  # Ctrl+C: uvicorn has shut down cleanly
         uvicorn.Server(config).run(sockets=[sock])
-    return 0
 
 
 def _log_service_messages() -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import gc
 import logging
 import multiprocessing
 import os
@@ -34,7 +35,7 @@ log = logging.getLogger(__name__)
 PARENT_WATCH_INTERVAL_S = 1.0
 """How often a pool process checks that the server that started it is still alive."""
 STOP_JOIN_TIMEOUT_S = 10.0
-"""How long shutdown waits for each terminated pool process to exit before killing it."""
+"""How long shutdown waits for each killed pool process to be reaped."""
 WARMING_UP = (
     "starting: loading the solver (its kernels are compiled on the first start after an "
     "install, which takes about a minute)"
@@ -64,8 +65,11 @@ def _watch_parent(parent_pid: int) -> None:
 
 
 def _init_child(parent_pid: int) -> None:
-    # Ctrl+C goes to the whole process group; the server decides when children stop.
+    # Ctrl+C, or a SIGTERM sent to the whole process group (a service manager stopping the
+    # server), reaches these processes too; the server decides when they stop (it kills them
+    # in its shutdown, and they exit by themselves if it dies).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s [%(name)s] %(message)s")
     threading.Thread(
         target=_watch_parent, args=(parent_pid,), name="trajopt-parent-watch", daemon=True
@@ -148,13 +152,19 @@ class LocalDispatcher:
             self.submit(job_id, TimeLimits(0, 0, 0))
 
     def submit(self, job_id: str, limits: TimeLimits) -> None:
-        """Queue the job in the pool (limits are applied inside ``execute_job``)."""
+        """Queue the job in the pool (limits are applied inside ``execute_job``); while the pool
+        still loads the solver, the queued job's progress says so (phase ``compiling``)."""
         with self._lock:
             if self._executor is None or self._closed:
                 raise RuntimeError("the local job pool is not running")
             future = self._executor.submit(_run_job, job_id, self._settings)
             self._pending[job_id] = future
+            warming = not any(f.done() for f in self._warming)
         future.add_done_callback(functools.partial(self._done, job_id))
+        if warming:
+            database = get_database(self._settings.effective_database_url)
+            with database.session() as session:
+                repository.mark_queued_progress(session, job_id, {"phase": "compiling"})
 
     def _done(self, job_id: str, future: Future[str]) -> None:
         with self._lock:
@@ -208,18 +218,18 @@ class LocalDispatcher:
         if executor is None:
             return
         processes = list((getattr(executor, "_processes", None) or {}).values())
-        executor.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
-            if process.is_alive():
-                process.terminate()
-        for process in processes:
-            process.join(STOP_JOIN_TIMEOUT_S)
+        for process in processes:  # an interrupted solve keeps nothing worth a graceful stop
             if process.is_alive():
                 process.kill()
-                process.join(STOP_JOIN_TIMEOUT_S)
-        # the executor's own thread and queues end once its processes are gone
+        for process in processes:
+            process.join(STOP_JOIN_TIMEOUT_S)
+        # the executor's own thread and queues end once its processes are gone; collecting
+        # them now releases their semaphores before the interpreter exits (no leak warning)
         with contextlib.suppress(Exception):
-            executor.shutdown(wait=True)
+            executor.shutdown(wait=True, cancel_futures=True)
+        self._warming = []
+        del executor, processes
+        gc.collect()
         try:
             database = get_database(self._settings.effective_database_url)
             with database.session() as session:

@@ -19,8 +19,9 @@ from typing import Any
 import pytest
 from pydantic import ValidationError
 
-from app.cli import CommandError, _build_parser, _port, check_listen
+from app.cli import _build_parser, _port
 from app.keys_cli import database_problem, key_table, safe_url
+from app.server import BindError, listen_socket
 from app.settings import (
     ConfigurationError,
     Settings,
@@ -299,7 +300,10 @@ def test_a_port_in_use_is_refused_before_serving() -> None:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        with pytest.raises(CommandError, match=f"cannot listen on 127.0.0.1:{port}: "):
-            check_listen("127.0.0.1", port)
-    with pytest.raises(CommandError, match=r"cannot listen on no-such-host\.invalid:8000"):
-        check_listen("no-such-host.invalid", 8000)
+        with pytest.raises(BindError, match=f"cannot listen on 127.0.0.1:{port}: .*--port"):
+            listen_socket("127.0.0.1", port)
+    with pytest.raises(BindError, match=r"cannot listen on no-such-host\.invalid:8000"):
+        listen_socket("no-such-host.invalid", 8000)
+    free = listen_socket("127.0.0.1", 0)
+    with free:
+        assert free.getsockname()[1] > 0
