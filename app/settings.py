@@ -58,6 +58,15 @@ def default_data_dir() -> Path:
     return Path(base) / "trajopt"
 
 
+def default_local_workers() -> int:
+    """Jobs the embedded pool runs at once by default: the usable CPUs less one for the API."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cpus = os.cpu_count() or 1
+    return max(1, cpus - 1)
+
+
 class Settings(BaseSettings):
     """All tunables of the service; defaults give the embedded mode (SQLite, no broker)."""
 
@@ -82,7 +91,13 @@ class Settings(BaseSettings):
 
     default_owner: str = "default"
     queue_name: str = "trajopt"
-    local_workers: int = Field(default=1, ge=1, le=64)
+    local_workers: int = Field(
+        default_factory=default_local_workers,
+        ge=1,
+        le=64,
+        description="Processes of the embedded job pool (jobs run at once); default: the CPUs "
+        "this process may use, less one for the API, at least one.",
+    )
 
     max_attempts: int = Field(default=3, ge=1, le=20)
     default_time_limit_s: float = Field(default=300.0, gt=0)

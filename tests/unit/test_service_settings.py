@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
-from app.settings import Settings, normalize_database_url
+from app.settings import Settings, default_local_workers, normalize_database_url
 from worker.celery_app import celery_config
 from worker.limits import check_visibility_timeout, job_time_limits, requested_time_limit
 
@@ -80,3 +81,18 @@ def test_celery_configuration_is_safe_for_long_cpu_jobs() -> None:
     visibility = conf["broker_transport_options"]["visibility_timeout"]
     assert visibility > conf["task_time_limit"]
     assert conf["task_time_limit"] > conf["task_soft_time_limit"]
+
+
+def test_the_embedded_pool_uses_the_cpus_less_one_for_the_api(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.delenv("TRAJOPT_LOCAL_WORKERS", raising=False)
+    cpus = len(os.sched_getaffinity(0))
+    assert default_local_workers() == max(1, cpus - 1)
+    assert Settings().local_workers == max(1, cpus - 1)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(8)))
+    assert Settings().local_workers == 7
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
+    assert Settings().local_workers == 1  # never zero
+    monkeypatch.setenv("TRAJOPT_LOCAL_WORKERS", "3")
+    assert Settings().local_workers == 3
