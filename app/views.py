@@ -34,7 +34,7 @@ class ErrorResponse(BaseModel):
 
 
 class ScenarioJobRequest(BaseModel):
-    """Submit a built-in scenario, optionally changed by a deep-merged ``overrides`` document."""
+    """Submit a built-in scenario, optionally changed by an ``overrides`` JSON Merge Patch."""
 
     model_config = ConfigDict(
         extra="forbid",
@@ -51,8 +51,15 @@ class ScenarioJobRequest(BaseModel):
     scenario: str = Field(..., description="Name of a built-in scenario (see /v1/scenarios).")
     overrides: dict[str, Any] = Field(
         default_factory=dict,
-        description="Partial problem document merged into the scenario: objects merge key by "
-        "key, anything else replaces.",
+        description="JSON Merge Patch (RFC 7396) of the scenario's problem document: objects "
+        "merge member by member, null removes a member, arrays and other values replace. An "
+        "object that changes the tag of a discriminated union (vehicle.aerodynamics.model, "
+        "vehicle.angle_of_attack.mode, planet.atmosphere.model, terminal.<state>.kind, "
+        "final_time.kind, method.name) replaces the scenario's object instead of merging.",
+        examples=[
+            {"planet": {"atmosphere": {"model": "us76"}}},
+            {"method": {"nodes": 40}, "no_fly_zones": None},
+        ],
     )
     method: dict[str, Any] | None = Field(
         None,
