@@ -6,7 +6,7 @@ from typing import Any
 
 from fastapi import APIRouter
 
-from app.errors import not_found
+from app.errors import ApiError
 from app.views import ErrorResponse, MethodView, ScenarioSummary, ScenarioView
 
 router = APIRouter(prefix="/v1", tags=["catalog"])
@@ -32,8 +32,8 @@ def get_scenario(name: str) -> ScenarioView:
 
     try:
         s = _get(name)
-    except KeyError:
-        raise not_found("scenario", name) from None
+    except KeyError as exc:  # its message names the close matches ("did you mean ...?")
+        raise ApiError(404, "scenario_not_found", str(exc)) from None
     return ScenarioView(
         name=s.name,
         title=s.title,

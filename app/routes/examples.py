@@ -140,7 +140,10 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
     "scenario_not_found": _error(
         404,
         "no such scenario",
-        {"code": "scenario_not_found", "message": "no scenario 'rlv-nope'"},
+        {
+            "code": "scenario_not_found",
+            "message": "unknown scenario 'rlv-min-heat-lod'; did you mean 'rlv-min-heat-load'?",
+        },
     ),
     "job_not_finished": _error(
         409,
