@@ -83,52 +83,50 @@ class _Attempt:
     def elapsed(self) -> float:
         return time.monotonic() - self.started
 
-    def on_iteration(self, record: Any) -> None:
-        clean = json_safe(record)
-        if not isinstance(clean, dict):
-            clean = {"record": clean}
-        self.history.append(clean)
+    def _write(self, what: str, kind: str, write: Callable[[Any], bool]) -> None:
+        """Run one progress ``write`` (True while the attempt owns the job), then wake the
+        job's event streams with ``kind``; a lost write is logged, it must not kill the solve."""
         try:
             with self.database.session() as session:
-                owned = repository.record_iteration(
-                    session,
-                    self.job_id,
-                    self.attempt,
-                    list(self.history),
-                    progress_of(clean, self.elapsed()),
-                    self.lease_s,
-                )
+                owned = write(session)
             if not owned:
                 self.stop_requested = True
         except self.passthrough:
             raise
-        except Exception:  # a lost progress write must not kill the solve
+        except Exception:
             self.write_errors += 1
-            log.exception("job %s: could not store iteration progress", self.job_id)
+            log.exception("job %s: could not store %s", self.job_id, what)
             return
         if self.notify is not None:
-            self.notify(self.job_id, "iteration")
+            self.notify(self.job_id, kind)
+
+    def on_iteration(self, record: Any) -> None:
+        """Store the history so far and the live progress of the new iteration."""
+        clean = json_safe(record)
+        if not isinstance(clean, dict):
+            clean = {"record": clean}
+        self.history.append(clean)
+        history, progress = list(self.history), progress_of(clean, self.elapsed())
+        self._write(
+            "iteration progress",
+            "iteration",
+            lambda session: repository.record_iteration(
+                session, self.job_id, self.attempt, history, progress, self.lease_s
+            ),
+        )
 
     def on_phase(self, phase: str) -> None:
         """Store that the attempt entered ``phase`` (compiling, optimizing, verifying), keeping
         the last iteration's figures, and wake the job's event streams."""
         last = progress_of(self.history[-1], self.elapsed()) if self.history else {"iteration": 0}
         progress = {**last, "phase": phase, "elapsed_s": round(self.elapsed(), 6)}
-        try:
-            with self.database.session() as session:
-                owned = repository.record_progress(
-                    session, self.job_id, self.attempt, progress, self.lease_s
-                )
-            if not owned:
-                self.stop_requested = True
-        except self.passthrough:
-            raise
-        except Exception:  # a lost progress write must not kill the solve
-            self.write_errors += 1
-            log.exception("job %s: could not store its phase %s", self.job_id, phase)
-            return
-        if self.notify is not None:
-            self.notify(self.job_id, "progress")
+        self._write(
+            f"its phase {phase}",
+            "progress",
+            lambda session: repository.record_progress(
+                session, self.job_id, self.attempt, progress, self.lease_s
+            ),
+        )
 
     def should_stop(self) -> bool:
         if self.elapsed() > self.limits.solve_s:
@@ -298,7 +296,8 @@ def execute_job(
     attempt.heartbeat = Heartbeat(database, job_id, claim.attempt, settings.lease_s)
     attempt.heartbeat.start()
     try:
-        _load_solver(attempt)
+        if solve is None:  # the real solver: its kernels first (a stand-in needs none)
+            _load_solver(attempt)
         outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
         try:
             stored = _finish(attempt, outcome)

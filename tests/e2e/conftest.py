@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 
 import pytest
 
-from tests.integration.harness import ApiServer, ServiceClient
-
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
+from tests.integration.harness import ApiServer, ServiceClient, service_free_env
 
 
 def embedded_env(data_dir: str) -> dict[str, str]:
     """This process's environment without service settings, the data in ``data_dir``."""
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
+    env = service_free_env()
     env.update(TRAJOPT_DATA_DIR=data_dir, TRAJOPT_LOCAL_WORKERS="1")
     return env
 

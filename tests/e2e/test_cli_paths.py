@@ -19,11 +19,10 @@ from pathlib import Path
 
 import pytest
 
-from tests.integration.harness import free_port
+from tests.integration.harness import free_port, service_free_env
 
 pytestmark = pytest.mark.slow
 
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 SHORT_SECRET = "s3cr3t-value-too-short-1"
 """A secret under 32 characters: refused, and never to appear in any output."""
 GOOD_SECRET = "9f" * 32
@@ -49,11 +48,7 @@ Trajopt = Callable[..., Run]
 
 def _env(tmp_path: Path, extra: dict[str, str] | None = None) -> dict[str, str]:
     """The calling environment without service variables, the data folder in ``tmp_path``."""
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
+    env = service_free_env()
     env["TRAJOPT_DATA_DIR"] = str(tmp_path / "data")
     env.update(extra or {})
     return env

@@ -5,7 +5,6 @@ No Redis, no PostgreSQL, no separate worker: the commands a fresh machine runs f
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -18,11 +17,10 @@ from tests.integration.harness import (
     ServiceClient,
     cancel_during_verification,
     long_job,
+    service_free_env,
 )
 
 pytestmark = pytest.mark.slow
-
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 
 
 def _running(job: dict[str, Any]) -> bool:
@@ -36,11 +34,7 @@ def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def server(data_dir: Path) -> Iterator[ApiServer]:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
+    env = service_free_env()
     env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
     yield from ApiServer(env, data_dir / "serve.log").serving()
 

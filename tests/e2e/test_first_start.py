@@ -7,26 +7,19 @@ takes tens of seconds here).
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
 import httpx
 import pytest
 
-from tests.integration.harness import SCENARIO, ApiServer
+from tests.integration.harness import SCENARIO, ApiServer, service_free_env
 
 pytestmark = pytest.mark.slow
 
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
-
 
 def test_the_service_is_ready_only_after_the_kernels_are_compiled(tmp_path: Path) -> None:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
+    env = service_free_env()
     cache = tmp_path / "numba-cache"
     env.update(TRAJOPT_DATA_DIR=str(tmp_path / "data"), NUMBA_CACHE_DIR=str(cache))
     server = ApiServer(env, tmp_path / "serve.log")

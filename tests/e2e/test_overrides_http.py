@@ -8,7 +8,6 @@ follows the U.S. Standard Atmosphere 1976 and not the scenario's exponential one
 from __future__ import annotations
 
 import json
-import os
 import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,12 +16,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.integration.harness import SCENARIO, ApiServer, ServiceClient
+from tests.integration.harness import SCENARIO, ApiServer, ServiceClient, service_free_env
 from worker.solver.atmosphere import ExponentialAtmosphere, US76Atmosphere
 
 pytestmark = pytest.mark.slow
 
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 US76 = {"planet": {"atmosphere": {"model": "us76"}}}
 
 
@@ -33,11 +31,7 @@ def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def server(data_dir: Path) -> Iterator[ApiServer]:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
+    env = service_free_env()
     env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
     yield from ApiServer(env, data_dir / "serve.log").serving()
 

@@ -5,7 +5,6 @@ stops is taken over by the other one within a sweep.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import time
@@ -15,11 +14,9 @@ from typing import Any
 
 import pytest
 
-from tests.integration.harness import REPO_ROOT, SCENARIO, ApiServer, long_job
+from tests.integration.harness import REPO_ROOT, SCENARIO, ApiServer, long_job, service_free_env
 
 pytestmark = pytest.mark.slow
-
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 
 
 def _iterating(job: dict[str, Any]) -> bool:
@@ -28,13 +25,7 @@ def _iterating(job: dict[str, Any]) -> bool:
 
 @pytest.fixture
 def env(tmp_path: Path) -> dict[str, str]:
-    clean = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
-    clean.update(TRAJOPT_DATA_DIR=str(tmp_path), TRAJOPT_SWEEP_INTERVAL_S="1")
-    return clean
+    return service_free_env(TRAJOPT_DATA_DIR=str(tmp_path), TRAJOPT_SWEEP_INTERVAL_S="1")
 
 
 @pytest.fixture

@@ -24,12 +24,11 @@ from tests.integration.harness import (
     create_api_key,
     forget_queue,
     require,
+    service_free_env,
 )
 
 TEST_SECRET = "it-only-5b1f0c7e9a2d4e6f8a0b2c4d6e8f0a1b"
 """Server secret of the test deployments (api-keys mode refuses a missing or default one)."""
-
-SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
 
 
 def _admin_urls() -> list[str]:
@@ -106,11 +105,7 @@ def stack_env(
     pg_schemas: PgSchemas, redis_base_url: str, tmp_path_factory: pytest.TempPathFactory
 ) -> dict[str, str]:
     """Environment of the API and worker processes of this run."""
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
-    }
+    env = service_free_env()
     db_number = random.randint(1, 15)
     env.update(
         DATABASE_URL=pg_schemas.new("it"),

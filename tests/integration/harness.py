@@ -46,6 +46,22 @@ def long_job(scenario: str) -> dict[str, Any]:
     return {"scenario": scenario, "method": method}
 
 
+SERVICE_ENV_NAMES = ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL")
+"""Service variables without the ``TRAJOPT_`` prefix."""
+
+
+def service_free_env(**settings: str) -> dict[str, str]:
+    """This process's environment without any service setting, plus ``settings``: a child
+    process started with it sees only what the test sets."""
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("TRAJOPT_") and k not in SERVICE_ENV_NAMES
+    }
+    env.update(settings)
+    return env
+
+
 def verification_job(scenario: str) -> dict[str, Any]:
     """A job whose verification takes many seconds (1000 nodes) after three quick iterations."""
     return {"scenario": scenario, "method": {"nodes": 1000, "max_iterations": 3}}
