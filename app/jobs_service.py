@@ -171,8 +171,20 @@ def submit_job(
                 headers={"Retry-After": str(QUEUE_RETRY_AFTER_S)},
             ) from exc
         log.info("job %s was picked up despite the error; accepted", job.id)
+    else:
+        _mark_sent(database, job.id)
     log.info("job %s accepted for client %s (%s)", job.id, owner, job.method)
     return job_view(job, settings), False
+
+
+def _mark_sent(database: Database, job_id: str) -> None:
+    """Close the job's outbox entry; if this fails, the relay sends the job once more (a
+    duplicate delivery does nothing)."""
+    try:
+        with database.session() as session:
+            repository.mark_dispatched(session, job_id)
+    except Exception:
+        log.warning("job %s: could not record that it was sent", job_id, exc_info=True)
 
 
 def _load(database: Database, owner: str, job_id: str) -> Job:

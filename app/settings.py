@@ -111,6 +111,14 @@ class Settings(BaseSettings):
         description="Celery node name; {pid} is the process id, %h the host name.",
     )
 
+    max_streams: int = Field(
+        default=200,
+        ge=1,
+        description="Event streams one API process keeps open at once, for all clients.",
+    )
+    max_streams_per_client: int = Field(
+        default=10, ge=1, description="Event streams one client may keep open on one API process."
+    )
     event_poll_interval_s: float = Field(default=0.05, gt=0, le=5)
     event_ping_interval_s: float = Field(default=15.0, gt=0)
     request_timeout_s: float = Field(default=2.0, gt=0)
@@ -143,6 +151,17 @@ class Settings(BaseSettings):
         default=30.0, gt=0, description="A running job whose heartbeat is older is re-queued."
     )
     sweep_interval_s: float = Field(default=5.0, gt=0)
+    result_write_retry_s: float = Field(
+        default=600.0,
+        ge=0,
+        description="How long a worker keeps a finished result while the database is "
+        "unreachable, retrying its write.",
+    )
+    relay_interval_s: float = Field(
+        default=1.0,
+        gt=0,
+        description="How often each API process sends the queued jobs that are due (outbox).",
+    )
     requeue_queued_after_s: float = Field(
         default=900.0,
         ge=0,

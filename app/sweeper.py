@@ -1,16 +1,22 @@
-"""The lease sweeper: finds running jobs whose worker stopped renewing its lease and acts.
+"""The sweeper and the dispatch relay: what keeps every accepted job moving.
 
-A lapsed lease means the worker is gone (killed, out of memory, hard time limit, lost machine).
-The job is re-queued while it has attempts left, ends ``timed_out`` (history kept) when its own
-time limit has passed, and ``failed``/``worker_lost`` after the attempt cap. Queued jobs left
-untouched for long are sent again (their message may have died with a broker). Every change is
-a conditional update, so several API processes can sweep the same database.
+The relay sends every queued job that is due (the jobs table is a transactional outbox: a job is
+stored due, the submitting request sends it and marks it sent; if that request's process dies or
+the broker refuses, the relay of any API process sends it within seconds). The sweeper finds
+running jobs whose worker stopped renewing its lease: a lapsed lease means the worker is gone
+(killed, out of memory, hard time limit, lost machine). The job is re-queued while it has
+attempts left, ends ``timed_out`` (history kept) when the attempt had run for its whole time
+limit, and ``failed``/``worker_lost`` after the attempt cap. Queued jobs left untouched for long
+are made due again (their message may have died with a broker). After the database was
+unreachable, leases get one lease period of grace: workers could not renew them either. Every
+change is a conditional update, so several API processes can sweep the same database.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -38,38 +44,42 @@ class SweepReport:
     resent: list[str] = field(default_factory=list)
 
 
-def _elapsed(started_at: datetime | None, now: datetime) -> float:
-    return (now - started_at).total_seconds() if started_at is not None else 0.0
-
-
 def sweep_once(
     database: Database,
     dispatcher: Dispatcher,
     settings: Settings,
     now: datetime | None = None,
     on_end: EndNotice | None = None,
-    unsent: set[str] | None = None,
+    lapse_checks: bool = True,
 ) -> SweepReport:
-    """Handle every lapsed running job and re-send stale queued ones; returns what changed.
-
-    ``unsent`` holds ids whose re-send failed (broker down); they are tried again first.
-    """
+    """Handle every lapsed running job (unless ``lapse_checks`` is off: the grace after a
+    database outage), make stale queued jobs due, then relay every due job; returns what
+    changed."""
     now = now or utcnow()
     report = SweepReport()
-    unsent = unsent if unsent is not None else set()
-    for job_id in sorted(unsent):
-        with database.reader() as session:
-            row = repository.get_job(session, job_id)
-        if row is None or row.status != JobStatus.QUEUED.value:
-            unsent.discard(job_id)
-        elif _send(dispatcher, job_id, job_time_limits(row.problem, settings)):
-            unsent.discard(job_id)
-            report.resent.append(job_id)
+    if lapse_checks:
+        _handle_lapsed(database, settings, now, on_end, report)
+    if settings.requeue_queued_after_s > 0:
+        with database.session() as session:
+            stale = repository.claim_stale_queued(session, now, settings.requeue_queued_after_s)
+        for job_id in stale:
+            log.warning("job %s: still queued; sending it again", job_id)
+    report.resent.extend(relay_once(database, dispatcher, settings, now))
+    return report
+
+
+def _handle_lapsed(
+    database: Database,
+    settings: Settings,
+    now: datetime,
+    on_end: EndNotice | None,
+    report: SweepReport,
+) -> None:
     with database.reader() as session:
         lapsed = repository.lapsed_running_jobs(session, now)
     for job in lapsed:
         limits = job_time_limits(job.problem, settings)
-        elapsed = _elapsed(job.started_at, now)
+        ran = job.running_s(settings.lease_s)
         with database.session() as session:
             if job.cancel_requested:
                 done = repository.finish_lapsed(
@@ -77,11 +87,11 @@ def sweep_once(
                     "cancelled", "cancelled on request; its worker stopped before finishing",
                 )  # fmt: skip
                 bucket = report.cancelled
-            elif elapsed >= limits.solve_s:
+            elif ran >= limits.solve_s:
                 done = repository.finish_lapsed(
                     session, job.id, job.attempts, now, JobStatus.TIMED_OUT.value, "time_limit",
-                    f"the worker stopped answering after the job's time limit of "
-                    f"{limits.solve_s:g} s (hard time limit); history kept",
+                    f"the worker stopped answering after running {ran:.0f} s, past the job's "
+                    f"time limit of {limits.solve_s:g} s (hard time limit); history kept",
                 )  # fmt: skip
                 bucket = report.timed_out
             elif job.attempts >= settings.max_attempts:
@@ -98,26 +108,40 @@ def sweep_once(
             continue  # it moved meanwhile (renewed, finished, or another sweeper acted)
         bucket.append(job.id)
         if bucket is report.requeued:
-            log.warning("job %s: worker lost during attempt %d; re-queued", job.id, job.attempts)
-            if not _send(dispatcher, job.id, limits):
-                unsent.add(job.id)
+            log.warning(
+                "job %s: worker lost during attempt %d after %.0f s; re-queued",
+                job.id,
+                job.attempts,
+                ran,
+            )
         else:
             log.warning("job %s: worker lost during attempt %d; ended", job.id, job.attempts)
             if on_end is not None:
                 on_end(job.id)
-    if settings.requeue_queued_after_s > 0:
+
+
+def relay_once(
+    database: Database, dispatcher: Dispatcher, settings: Settings, now: datetime | None = None
+) -> list[str]:
+    """Send every queued job that is due (never sent, re-queued, or its sender gone); returns
+    the ids sent. A job whose send fails stays due and is tried again at the next relay."""
+    now = now or utcnow()
+    with database.session() as session:
+        due = repository.claim_due_dispatches(session, now)
+    sent = []
+    for job_id in due:
+        with database.reader() as session:
+            row = repository.get_job(session, job_id)
+        if row is None or row.status != JobStatus.QUEUED.value:
+            continue
+        if not _send(dispatcher, job_id, job_time_limits(row.problem, settings)):
+            continue
         with database.session() as session:
-            stale = repository.claim_stale_queued(session, now, settings.requeue_queued_after_s)
-        for job_id in stale:
-            with database.reader() as session:
-                row = repository.get_job(session, job_id)
-            if row is not None:
-                log.warning("job %s: still queued; sending it again", job_id)
-                if _send(dispatcher, job_id, job_time_limits(row.problem, settings)):
-                    report.resent.append(job_id)
-                else:
-                    unsent.add(job_id)
-    return report
+            repository.mark_dispatched(session, job_id)
+        sent.append(job_id)
+    if sent:
+        log.info("relay sent %d queued job(s)", len(sent))
+    return sent
 
 
 def _send(dispatcher: Dispatcher, job_id: str, limits: TimeLimits) -> bool:
@@ -130,7 +154,8 @@ def _send(dispatcher: Dispatcher, job_id: str, limits: TimeLimits) -> bool:
 
 
 class Sweeper:
-    """Runs :func:`sweep_once` every ``settings.sweep_interval_s`` in a daemon thread."""
+    """Runs :func:`relay_once` every ``settings.relay_interval_s`` and :func:`sweep_once` every
+    ``settings.sweep_interval_s`` in a daemon thread."""
 
     def __init__(
         self,
@@ -141,10 +166,11 @@ class Sweeper:
     ) -> None:
         self._args = (database, dispatcher, settings)
         self._on_end = on_end
-        self._interval = settings.sweep_interval_s
-        self._unsent: set[str] = set()
+        self._settings = settings
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="trajopt-sweeper", daemon=True)
+        self._database_trouble = False
+        self._grace_until = 0.0
 
     def start(self) -> None:
         """Start sweeping in the background."""
@@ -156,8 +182,25 @@ class Sweeper:
         self._thread.join(timeout=10.0)
 
     def _run(self) -> None:
-        while not self._stop.wait(self._interval):
+        settings = self._settings
+        tick = min(settings.relay_interval_s, settings.sweep_interval_s)
+        next_sweep = 0.0
+        while not self._stop.wait(tick):
+            now = time.monotonic()
             try:
-                sweep_once(*self._args, on_end=self._on_end, unsent=self._unsent)
+                if now >= next_sweep:
+                    next_sweep = now + settings.sweep_interval_s
+                    sweep_once(
+                        *self._args, on_end=self._on_end, lapse_checks=now >= self._grace_until
+                    )
+                else:
+                    relay_once(*self._args)
             except Exception:  # the database may be briefly away; try again next time
-                log.warning("lease sweep failed", exc_info=True)
+                if not self._database_trouble:
+                    log.warning("sweep failed; retrying", exc_info=True)
+                self._database_trouble = True
+                continue
+            if self._database_trouble:  # back: workers renew their leases now, give them time
+                self._database_trouble = False
+                self._grace_until = time.monotonic() + settings.lease_s
+                log.info("database reachable again; leases get %.0f s of grace", settings.lease_s)

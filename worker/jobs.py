@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pydantic import ValidationError
+from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
 from app.settings import Settings, get_settings
 from app.storage import repository
@@ -235,6 +236,37 @@ def _finish(attempt: _Attempt, outcome: Outcome) -> str | None:
         return cancelled.status if _store(session, attempt, cancelled) else None
 
 
+def database_unreachable(exc: BaseException) -> bool:
+    """Whether ``exc`` says the database could not be reached (worth retrying), rather than
+    that it refused the statement."""
+    if isinstance(exc, OperationalError | InterfaceError):
+        return True
+    return isinstance(exc, DBAPIError) and bool(exc.connection_invalidated)
+
+
+def _finish_despite_outages(attempt: _Attempt, outcome: Outcome, retry_s: float) -> str | None:
+    """:func:`_finish`, retried while the database is unreachable for up to ``retry_s``: a
+    finished result is kept in this process and written when the database returns."""
+    deadline = time.monotonic() + retry_s
+    pause = 0.5
+    while True:
+        try:
+            return _finish(attempt, outcome)
+        except Exception as exc:
+            if not database_unreachable(exc) or time.monotonic() + pause > deadline:
+                raise
+            log.warning(
+                "job %s: the database is unreachable; keeping the %s result and retrying in "
+                "%.1f s (%s)",
+                attempt.job_id,
+                outcome.status,
+                pause,
+                type(exc).__name__,
+            )
+            time.sleep(pause)
+            pause = min(2.0 * pause, 5.0)
+
+
 def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
     last = outcome.history[-1] if outcome.history else None
     values: dict[str, Any] = {
@@ -250,7 +282,9 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
         session,
         attempt.job_id,
         to=outcome.status,
-        allowed_from=[JobStatus.RUNNING.value],
+        # queued too: the sweeper may have re-queued the job while the database was away
+        # and no other attempt has claimed it yet, so this finished result is still the job's
+        allowed_from=[JobStatus.RUNNING.value, JobStatus.QUEUED.value],
         attempt=attempt.attempt,
         values=values,
         unless_cancel_requested=outcome.status != JobStatus.CANCELLED,
@@ -300,9 +334,9 @@ def execute_job(
             _load_solver(attempt)
         outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
         try:
-            stored = _finish(attempt, outcome)
+            stored = _finish_despite_outages(attempt, outcome, settings.result_write_retry_s)
         except timeout_exceptions:  # a soft limit fires once: the second write is not interrupted
-            stored = _finish(attempt, outcome)
+            stored = _finish_despite_outages(attempt, outcome, settings.result_write_retry_s)
     finally:
         attempt.heartbeat.stop()
     if stored:

@@ -28,15 +28,16 @@ def _notifier(url: str) -> RedisNotifier:
     reject_on_worker_lost=True,
     ignore_result=True,
     autoretry_for=(OperationalError, InterfaceError),
-    retry_backoff=2,
-    retry_backoff_max=60,
-    max_retries=5,
+    retry_backoff=1,
+    retry_backoff_max=10,
+    max_retries=None,
 )
 def solve_job(job_id: str) -> str:
     """Run the stored job ``job_id``; duplicate deliveries of a finished job do nothing.
 
-    A database that cannot be reached is retried with backoff; a retry is a new delivery, so
-    the attempt counter still bounds how often the solve itself restarts.
+    A database that cannot be reached is retried with backoff (at most 10 s apart, for as long
+    as the outage lasts, so the job runs within seconds of the database's return); a retry is a
+    new delivery, so the attempt counter still bounds how often the solve itself restarts.
     """
     settings = get_settings()
     return execute_job(

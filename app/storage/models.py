@@ -91,6 +91,7 @@ class Job(Base):
         Index("ix_jobs_owner_created", "owner", "created_at"),
         Index("ix_jobs_status", "status"),
         Index("ix_jobs_status_lease", "status", "lease_expires_at"),
+        Index("ix_jobs_status_dispatch_due", "status", "dispatch_due_at"),
     )
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True)
@@ -117,6 +118,8 @@ class Job(Base):
     """Heartbeat of the running attempt: past this instant its worker is presumed gone."""
     lease_holder: Mapped[str | None] = mapped_column(String(255), nullable=True)
     """``host/pid`` of the process running the attempt (see :func:`process_identity`)."""
+    dispatch_due_at: Mapped[datetime | None] = mapped_column(UtcDateTime, nullable=True)
+    """Outbox: when this queued job is due to be sent to a worker (again); null once sent."""
 
 
 class ApiKey(Base):

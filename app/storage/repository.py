@@ -34,8 +34,17 @@ class NewJob:
     request_hash: str | None = None
 
 
+DISPATCH_CLAIM_S = 10.0
+"""How long a sender holds a queued job's dispatch: if the job is not marked sent by then (the
+sender died, or the broker refused), the relay of any API process sends it."""
+
+
 def create_job(session: Session, new: NewJob) -> Job:
-    """Insert a ``queued`` job and flush it (raises ``IntegrityError`` on a duplicate key)."""
+    """Insert a ``queued`` job and flush it (raises ``IntegrityError`` on a duplicate key).
+
+    The row is its own outbox entry: it is due to be sent :data:`DISPATCH_CLAIM_S` from now,
+    which gives the submitting request the first try (:func:`mark_dispatched` when it is sent).
+    """
     now = utcnow()
     job = Job(
         id=str(uuid.uuid4()),
@@ -51,6 +60,7 @@ def create_job(session: Session, new: NewJob) -> Job:
         created_at=now,
         updated_at=now,
         history=[],
+        dispatch_due_at=now + timedelta(seconds=DISPATCH_CLAIM_S),
     )
     session.add(job)
     session.flush()
@@ -197,6 +207,7 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int, lease_s: flo
             updated_at=now,
             lease_expires_at=now + timedelta(seconds=lease_s),
             lease_holder=process_identity(),
+            dispatch_due_at=None,
             progress=None,
             history=[],
         )
@@ -315,17 +326,33 @@ class LapsedJob:
     started_at: datetime | None
     problem: dict[str, Any]
     cancel_requested: bool
+    lease_expires_at: datetime | None = None
+
+    def running_s(self, lease_s: float) -> float:
+        """Seconds the attempt ran: from its start to its last renewal (the lapsed lease less
+        its length), not the time it took to notice the worker was gone."""
+        if self.started_at is None or self.lease_expires_at is None:
+            return 0.0
+        last_alive = self.lease_expires_at - timedelta(seconds=lease_s)
+        return max(0.0, (last_alive - self.started_at).total_seconds())
 
 
 def lapsed_running_jobs(session: Session, now: datetime, limit: int = 100) -> list[LapsedJob]:
     """Running jobs whose lease expired before ``now``, oldest lease first."""
     rows = session.execute(
-        select(Job.id, Job.attempts, Job.started_at, Job.problem, Job.cancel_requested)
+        select(
+            Job.id,
+            Job.attempts,
+            Job.started_at,
+            Job.problem,
+            Job.cancel_requested,
+            Job.lease_expires_at,
+        )
         .where(Job.status == JobStatus.RUNNING.value, Job.lease_expires_at < now)
         .order_by(Job.lease_expires_at)
         .limit(limit)
     ).all()
-    return [LapsedJob(r[0], int(r[1]), r[2], r[3], bool(r[4])) for r in rows]
+    return [LapsedJob(r[0], int(r[1]), r[2], r[3], bool(r[4]), r[5]) for r in rows]
 
 
 def requeue_lapsed(session: Session, job_id: str, attempt: int, now: datetime) -> bool:
@@ -339,7 +366,11 @@ def requeue_lapsed(session: Session, job_id: str, attempt: int, now: datetime) -
             Job.lease_expires_at < now,
         )
         .values(
-            status=JobStatus.QUEUED.value, lease_expires_at=None, lease_holder=None, updated_at=now
+            status=JobStatus.QUEUED.value,
+            lease_expires_at=None,
+            lease_holder=None,
+            dispatch_due_at=now,
+            updated_at=now,
         )
         .execution_options(**_NO_SYNC)
     )
@@ -374,8 +405,9 @@ def finish_lapsed(
 def claim_stale_queued(
     session: Session, now: datetime, older_than_s: float, limit: int = 100
 ) -> list[str]:
-    """Queued jobs untouched for ``older_than_s``; their ``updated_at`` is bumped so only one
-    sweeper re-sends each (the queue message may have been lost with a broker)."""
+    """Queued jobs untouched for ``older_than_s``, made due to be sent again (their queue
+    message may have been lost with a broker); ``updated_at`` is bumped so only one sweeper
+    takes each."""
     cutoff = now - timedelta(seconds=older_than_s)
     ids = list(
         session.execute(
@@ -390,7 +422,7 @@ def claim_stale_queued(
         stmt = (
             update(Job)
             .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff)
-            .values(updated_at=now)
+            .values(updated_at=now, dispatch_due_at=now)
             .execution_options(**_NO_SYNC)
         )
         if _rowcount(session.execute(stmt)) == 1:
@@ -449,6 +481,45 @@ def count_active(session: Session, owner: str) -> int:
         .where(Job.owner == owner, Job.status.in_(list(ACTIVE_STATUSES)))
     )
     return int(session.execute(stmt).scalar_one())
+
+
+def mark_dispatched(session: Session, job_id: str) -> bool:
+    """Record that a queued job's message was handed to the queue (its outbox entry is done)."""
+    stmt = (
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
+        .values(dispatch_due_at=None)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def claim_due_dispatches(
+    session: Session, now: datetime, claim_s: float = DISPATCH_CLAIM_S, limit: int = 100
+) -> list[str]:
+    """Queued jobs due to be sent, oldest first, each claimed for ``claim_s`` (its due time
+    moves on, so one relay sends it; if that one dies, another sends it after ``claim_s``)."""
+    rows = session.execute(
+        select(Job.id, Job.dispatch_due_at)
+        .where(Job.status == JobStatus.QUEUED.value, Job.dispatch_due_at <= now)
+        .order_by(Job.dispatch_due_at, Job.created_at)
+        .limit(limit)
+    ).all()
+    claimed: list[str] = []
+    for job_id, due in rows:
+        stmt = (
+            update(Job)
+            .where(
+                Job.id == job_id,
+                Job.status == JobStatus.QUEUED.value,
+                Job.dispatch_due_at == due,
+            )
+            .values(dispatch_due_at=now + timedelta(seconds=claim_s))
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            claimed.append(job_id)
+    return claimed
 
 
 def withdraw_unclaimed(session: Session, job_id: str) -> bool:

@@ -18,6 +18,7 @@ from tests.integration.harness import (
     cancel_during_verification,
     long_job,
     service_free_env,
+    verification_job,
 )
 
 pytestmark = pytest.mark.slow
@@ -94,6 +95,20 @@ def test_failure_and_cancellation(client: ServiceClient, scenario: str) -> None:
 
 def test_cancel_during_the_verification_stops_it(client: ServiceClient, scenario: str) -> None:
     cancel_during_verification(client, scenario)
+
+
+def test_the_time_limit_covers_the_verification(client: ServiceClient, scenario: str) -> None:
+    """Three quick iterations, then a verification of many seconds: a 2 s limit ends it."""
+    body = verification_job(scenario)
+    body["method"]["time_limit_s"] = 2.0
+    job = client.submit(body)
+    done = client.wait_finished(job["id"], timeout=120)
+    assert (done["status"], done["error"]["code"]) == ("timed_out", "time_limit")
+    result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
+    assert result["verification"] is None and len(result["history"]) == 3
+    # the limit plus one stop-poll interval and the final writes (tolerance for a busy machine;
+    # the uncut verification alone takes several times the limit)
+    assert result["timing"]["total_s"] < 2.0 + 1.5
 
 
 def test_restart_keeps_jobs_and_resumes_unfinished_ones(

@@ -13,12 +13,13 @@ from pathlib import Path
 
 import pytest
 from pydantic import ValidationError
+from sqlalchemy import update
 
 from app.cli import main as cli_main
 from app.settings import Settings
 from app.storage import repository
 from app.storage.migrate import upgrade_database
-from app.storage.models import utcnow
+from app.storage.models import Job, utcnow
 from app.storage.repository import ClaimState, NewJob
 from app.storage.session import Database, create_db_engine
 from app.sweeper import sweep_once
@@ -97,17 +98,18 @@ def test_sweeper_ends_jobs_past_their_time_limit_or_attempts(
 ) -> None:
     runaway = _new(database, {"method": {"name": "energy-scp", "time_limit_s": 2}})
     exhausted, cancelled = _new(database), _new(database)
-    _claim(database, runaway, lease_s=1.0)
+    _claim(database, runaway)
+    _started_ago(database, runaway, 3.0)  # it ran 3 s of its 2 s before its worker was lost
     with database.session() as s:
         history = [{"iteration": 1}, {"iteration": 2}]
-        assert repository.record_iteration(s, runaway, 1, history, {"iteration": 2}, 1.0)
+        assert repository.record_iteration(s, runaway, 1, history, {"iteration": 2}, LEASE_S)
     for _ in range(3):
         _claim(database, exhausted, lease_s=0.0)
     _claim(database, cancelled, lease_s=1.0)
     with database.session() as s:
         repository.request_cancel(s, cancelled, "alice")
     dispatcher = RecordingDispatcher()
-    report = sweep_once(database, dispatcher, settings, now=utcnow() + timedelta(seconds=10))
+    report = sweep_once(database, dispatcher, settings, now=utcnow() + timedelta(seconds=40))
     assert (report.timed_out, report.worker_lost, report.cancelled) == (
         [runaway],
         [exhausted],
@@ -120,6 +122,32 @@ def test_sweeper_ends_jobs_past_their_time_limit_or_attempts(
     job = _job(database, exhausted)
     assert (job.status, job.error_code, job.attempts) == ("failed", "worker_lost", 3)
     assert _job(database, cancelled).status == "cancelled"
+
+
+def _started_ago(db: Database, job_id: str, seconds: float) -> None:
+    with db.session() as s:
+        s.execute(
+            update(Job)
+            .where(Job.id == job_id)
+            .values(started_at=utcnow() - timedelta(seconds=seconds))
+        )
+
+
+def test_a_worker_lost_near_the_end_of_its_budget_is_retried_not_timed_out(
+    database: Database, settings: Settings
+) -> None:
+    """Only the time the attempt ran counts against its limit, not the time it took to notice
+    that its worker was gone."""
+    job_id = _new(database, {"method": {"name": "energy-scp", "time_limit_s": 2}})
+    _claim(database, job_id)
+    _started_ago(database, job_id, 1.5)  # 1.5 s of its 2 s, then the worker died
+    with database.session() as s:  # its last sign of life, now
+        assert repository.renew_lease(s, job_id, 1, LEASE_S)
+    dispatcher = RecordingDispatcher()
+    later = utcnow() + timedelta(seconds=35)  # noticed long after the 2 s had passed
+    report = sweep_once(database, dispatcher, settings, now=later)
+    assert (report.requeued, report.timed_out) == ([job_id], [])
+    assert [j for j, _ in dispatcher.submitted] == [job_id]
 
 
 def test_stale_queued_jobs_are_sent_again_once(database: Database, settings: Settings) -> None:
@@ -207,12 +235,15 @@ def test_a_requeue_that_cannot_be_sent_is_retried_at_the_next_sweep(
 
     job_id = _new(database)
     _claim(database, job_id, lease_s=1.0)
-    unsent: set[str] = set()
     later = utcnow() + timedelta(seconds=5)
-    report = sweep_once(database, FailingDispatcher(), settings, now=later, unsent=unsent)
-    assert report.requeued == [job_id] and unsent == {job_id}
-    assert _job(database, job_id).status == "queued"
+    report = sweep_once(database, FailingDispatcher(), settings, now=later)
+    assert (report.requeued, report.resent) == ([job_id], [])
+    job = _job(database, job_id)
+    assert job.status == "queued" and job.dispatch_due_at is not None  # still due
     dispatcher = RecordingDispatcher()  # the broker is back
-    report = sweep_once(database, dispatcher, settings, now=later, unsent=unsent)
-    assert report.resent == [job_id] and unsent == set()
+    retry = later + timedelta(seconds=repository.DISPATCH_CLAIM_S)
+    report = sweep_once(database, dispatcher, settings, now=retry)
+    assert report.resent == [job_id]
     assert [j for j, _ in dispatcher.submitted] == [job_id]
+    assert _job(database, job_id).dispatch_due_at is None
+    assert sweep_once(database, dispatcher, settings, now=retry).resent == []
