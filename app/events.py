@@ -1,46 +1,51 @@
-"""Server-sent events of one job: one ``iteration`` event per SCP iteration, a ``phase`` event
-when the attempt starts compiling, optimizing or verifying, then one ``end``.
+"""Wake-up notices for the server-sent event streams, and the ``Last-Event-ID`` of a reconnect.
 
-The database is the source of every event. A waker only decides when to look again: Redis
-pub/sub notices from the workers when a broker is configured, a short poll otherwise.
+The database is the source of every event (see :mod:`app.stream_hub`). A waker only tells the
+process's one stream watcher when to look again: Redis pub/sub notices from the workers when a
+broker is configured (one connection per process, one pattern subscription for every job), the
+local pool's completion callback and a short poll otherwise.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import threading
-from collections.abc import AsyncIterator, Callable
-from contextlib import AbstractAsyncContextManager, asynccontextmanager
-from dataclasses import dataclass
-from datetime import datetime
-from typing import Any, Protocol
+from collections.abc import Callable
+from typing import Protocol
 
-import anyio.to_thread
 import redis.asyncio as aioredis
-from sqlalchemy import select
-from sse_starlette.sse import ServerSentEvent
 
-from app.storage.models import TERMINAL_STATUSES, Job
-from app.storage.session import Database
-from worker.notify import channel_for
+from worker.notify import CHANNEL_PREFIX
 
 log = logging.getLogger(__name__)
 
-WaitFn = Callable[[float], Any]
+NoticeFn = Callable[[str | None], None]
+"""Called on the event loop with the id of a job that may have changed (``None``: any job)."""
+
+IDLE_REREAD_S = 1.0
+"""With live Redis notices, every watched job is still read again this often (a lost notice
+costs at most this much latency)."""
+
+REDIS_RETRY_S = 2.0
+"""Pause before the Redis listener connects again after a failure."""
 
 
 class Waker(Protocol):
-    """Gives an SSE stream a ``wait(timeout)`` that returns early when its job may have changed."""
+    """The process-wide source of "job X may have changed" notices for the stream watcher."""
 
-    def subscribe(self, job_id: str) -> AbstractAsyncContextManager[WaitFn]:
-        """Listen for changes of ``job_id`` while the context is open."""
+    def poll_interval(self) -> float:
+        """How long the watcher waits for a notice before reading every watched job again."""
+        ...
+
+    async def start(self, on_notice: NoticeFn) -> None:
+        """Deliver notices to ``on_notice`` (on the running loop) from now on."""
         ...
 
     async def close(self) -> None:
-        """Release connections."""
+        """Stop delivering notices and release connections."""
+        ...
 
 
 class PollingWaker:
@@ -53,122 +58,103 @@ class PollingWaker:
     def __init__(self, interval_s: float) -> None:
         self._interval = interval_s
         self._lock = threading.Lock()
-        self._waiters: dict[str, set[tuple[asyncio.AbstractEventLoop, asyncio.Event]]] = {}
+        self._sink: tuple[asyncio.AbstractEventLoop, NoticeFn] | None = None
+
+    def poll_interval(self) -> float:
+        """The configured poll interval."""
+        return self._interval
+
+    async def start(self, on_notice: NoticeFn) -> None:
+        """Deliver :meth:`notify` calls to ``on_notice`` on the running loop."""
+        with self._lock:
+            self._sink = (asyncio.get_running_loop(), on_notice)
 
     def notify(self, job_id: str) -> None:
-        """Wake the streams of ``job_id`` (thread-safe)."""
+        """Tell the watcher that ``job_id`` changed (thread-safe; a no-op before ``start``)."""
         with self._lock:
-            waiters = list(self._waiters.get(job_id, ()))
-        for loop, event in waiters:
-            loop.call_soon_threadsafe(event.set)
-
-    @asynccontextmanager
-    async def subscribe(self, job_id: str) -> AsyncIterator[WaitFn]:
-        """A wait that sleeps the poll interval unless the job is notified first."""
-        entry = (asyncio.get_running_loop(), asyncio.Event())
-        with self._lock:
-            self._waiters.setdefault(job_id, set()).add(entry)
-
-        async def wait(timeout: float) -> None:
-            event = entry[1]
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(event.wait(), min(timeout, self._interval))
-            event.clear()
-
-        try:
-            yield wait
-        finally:
-            with self._lock:
-                waiters = self._waiters.get(job_id)
-                if waiters is not None:
-                    waiters.discard(entry)
-                    if not waiters:
-                        del self._waiters[job_id]
+            sink = self._sink
+        if sink is None:
+            return
+        loop, on_notice = sink
+        with contextlib.suppress(RuntimeError):  # the loop closed at shutdown
+            loop.call_soon_threadsafe(on_notice, job_id)
 
     async def close(self) -> None:
-        """Nothing to release."""
+        """Stop delivering notices."""
+        with self._lock:
+            self._sink = None
 
 
 class RedisWaker:
-    """Wakes up on the workers' Redis notices; falls back to polling if Redis misbehaves."""
+    """One Redis connection per process subscribed to every job's notice channel (a pattern).
+
+    Each API process hears every job's notices and drops those of jobs it does not stream: a
+    notice is a few bytes per solver iteration, far cheaper than a subscription per stream. While
+    Redis is unreachable the watcher polls every ``fallback_interval_s`` instead, and the listener
+    reconnects every :data:`REDIS_RETRY_S`.
+    """
 
     def __init__(self, url: str, fallback_interval_s: float) -> None:
         self._url = url
         self._fallback = fallback_interval_s
-        self._client: aioredis.Redis | None = None
+        self._task: asyncio.Task[None] | None = None
+        self._listening = False
 
-    def _redis(self) -> aioredis.Redis:
-        if self._client is None:
-            self._client = aioredis.Redis.from_url(self._url)
-        return self._client
+    def poll_interval(self) -> float:
+        """:data:`IDLE_REREAD_S` while notices arrive, the fallback poll while Redis is away."""
+        return IDLE_REREAD_S if self._listening else min(self._fallback, IDLE_REREAD_S)
 
-    @asynccontextmanager
-    async def subscribe(self, job_id: str) -> AsyncIterator[WaitFn]:
-        """A wait that returns at the next notice of ``job_id`` (or after ``timeout``)."""
-        pubsub = None
-        try:
-            pubsub = self._redis().pubsub()
-            await pubsub.subscribe(channel_for(job_id))
-        except Exception:
-            log.warning("no Redis notices for job %s; polling instead", job_id, exc_info=True)
-            pubsub = None
+    async def start(self, on_notice: NoticeFn) -> None:
+        """Start the listener task (once)."""
+        if self._task is None:
+            self._task = asyncio.create_task(self._listen(on_notice), name="trajopt-notices")
 
-        async def wait(timeout: float) -> None:
-            if pubsub is None:
-                await asyncio.sleep(min(timeout, self._fallback))
-                return
+    async def _listen(self, on_notice: NoticeFn) -> None:
+        failures = 0
+        while True:
+            client = aioredis.Redis.from_url(self._url, socket_connect_timeout=2.0)
+            pubsub = client.pubsub(ignore_subscribe_messages=True)
             try:
-                message = await pubsub.get_message(ignore_subscribe_messages=True, timeout=timeout)
-                while message is not None:  # drain: one database read covers them all
-                    message = await pubsub.get_message(ignore_subscribe_messages=True, timeout=0)
-            except Exception:
-                log.warning("Redis notice wait failed", exc_info=True)
-                await asyncio.sleep(min(timeout, self._fallback))
-
-        try:
-            yield wait
-        finally:
-            if pubsub is not None:
-                try:
-                    await pubsub.unsubscribe()
+                await pubsub.psubscribe(CHANNEL_PREFIX + "*")
+                self._listening = True
+                if failures:
+                    log.info("Redis notices for event streams are back")
+                    on_notice(None)  # notices may have been lost meanwhile
+                failures = 0
+                while True:
+                    message = await pubsub.get_message(timeout=IDLE_REREAD_S)
+                    if message is not None and message.get("type") == "pmessage":
+                        channel = message["channel"]
+                        if isinstance(channel, bytes):
+                            channel = channel.decode("utf-8", "replace")
+                        on_notice(str(channel).removeprefix(CHANNEL_PREFIX))
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:
+                self._listening = False
+                failures += 1
+                if failures == 1:  # once per outage, not once per retry
+                    log.warning(
+                        "no Redis notices for event streams (%s); polling every %g s until "
+                        "Redis is back",
+                        exc,
+                        self.poll_interval(),
+                    )
+                await asyncio.sleep(REDIS_RETRY_S)
+            finally:
+                self._listening = False
+                with contextlib.suppress(Exception):
                     await pubsub.aclose()
-                except Exception:
-                    log.debug("closing a pubsub failed", exc_info=True)
+                with contextlib.suppress(Exception):
+                    await client.aclose()
 
     async def close(self) -> None:
-        """Close the Redis connection pool."""
-        if self._client is not None:
-            await self._client.aclose()
-            self._client = None
-
-
-@dataclass(frozen=True)
-class _Snapshot:
-    status: str
-    updated_at: datetime
-    job: Job | None
-    """The whole row when it changed since the previous read, else ``None``."""
-
-
-def _read(database: Database, job_id: str, owner: str, since: datetime | None) -> _Snapshot | None:
-    with database.reader() as session:
-        head = session.execute(
-            select(Job.status, Job.updated_at).where(Job.id == job_id, Job.owner == owner)
-        ).one_or_none()
-        if head is None:
-            return None
-        status, updated_at = head
-        if since is not None and updated_at == since and status not in TERMINAL_STATUSES:
-            return _Snapshot(status, updated_at, None)
-        job = session.execute(select(Job).where(Job.id == job_id)).scalar_one()
-        return _Snapshot(job.status, job.updated_at, job)
-
-
-def _phase_of(job: Job) -> tuple[int, str] | None:
-    """The running attempt's phase as (attempt, phase), if its progress names one."""
-    progress = job.progress if isinstance(job.progress, dict) else {}
-    name = progress.get("phase")
-    return (job.attempts, name) if isinstance(name, str) else None
+        """Stop the listener and close its connection."""
+        task, self._task = self._task, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
 
 
 def parse_last_event_id(value: str | None) -> int:
@@ -179,52 +165,3 @@ def parse_last_event_id(value: str | None) -> int:
         return max(0, int(value.strip()))
     except ValueError:
         return 0
-
-
-async def job_events(
-    *,
-    database: Database,
-    waker: Waker,
-    job_id: str,
-    owner: str,
-    end_payload: Callable[[Job], Any],
-    after: int = 0,
-    idle_wait_s: float = 1.0,
-) -> AsyncIterator[ServerSentEvent]:
-    """Stream the job's iterations from number ``after + 1`` on, then a final ``end`` event.
-
-    ``end_payload`` turns the finished job's row into the data of the ``end`` event.
-    """
-    sent = after
-    attempts: int | None = None
-    phase: tuple[int, str] | None = None
-    since: datetime | None = None
-    async with waker.subscribe(job_id) as wait:
-        while True:
-            snap = await anyio.to_thread.run_sync(_read, database, job_id, owner, since)
-            if snap is None:
-                return
-            job = snap.job
-            if job is not None:
-                since = snap.updated_at
-                if attempts is not None and job.attempts != attempts:
-                    sent = 0  # a new attempt starts its history again
-                attempts = job.attempts
-                history = list(job.history or [])
-                for index in range(sent, len(history)):
-                    data = {"job_id": job_id, "attempt": job.attempts, **history[index]}
-                    yield ServerSentEvent(
-                        data=json.dumps(data), event="iteration", id=str(index + 1)
-                    )
-                sent = max(sent, len(history))
-                now = _phase_of(job)
-                if now is not None and now != phase and job.status not in TERMINAL_STATUSES:
-                    phase = now
-                    data = {"job_id": job_id, "attempt": now[0], "phase": now[1]}
-                    data["elapsed_s"] = (job.progress or {}).get("elapsed_s")
-                    yield ServerSentEvent(data=json.dumps(data), event="phase")
-                if job.status in TERMINAL_STATUSES:
-                    payload = json.dumps(end_payload(job))
-                    yield ServerSentEvent(data=payload, event="end", id=str(sent + 1))
-                    return
-            await wait(idle_wait_s)

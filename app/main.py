@@ -27,6 +27,7 @@ from app.settings import Settings, get_settings
 from app.state import ServiceState
 from app.storage.migrate import upgrade_database
 from app.storage.session import get_database
+from app.stream_hub import StreamHub
 from app.sweeper import Sweeper
 from app.views import ErrorResponse
 
@@ -76,6 +77,13 @@ def build_service(settings: Settings, dispatcher: Dispatcher | None = None) -> S
         waker=waker,
         registry=build_registry(database, dispatcher),
         rate_limiter=rate_limiter,
+        streams=StreamHub(
+            database,
+            waker,
+            max_streams=settings.max_streams,
+            max_streams_per_client=settings.max_streams_per_client,
+            min_read_gap_s=settings.event_poll_interval_s,
+        ),
     )
 
 
@@ -134,6 +142,7 @@ def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None =
             sweeper.stop()
             service.dispatcher.shutdown()
             service.rate_limiter.close()
+            await service.streams.close()
             await service.waker.close()
 
     app = FastAPI(

@@ -12,6 +12,7 @@ from app.events import Waker
 from app.ratelimit import RateLimiter
 from app.settings import Settings
 from app.storage.session import Database
+from app.stream_hub import StreamHub
 
 
 @dataclass
@@ -24,3 +25,5 @@ class ServiceState:
     waker: Waker
     registry: CollectorRegistry
     rate_limiter: RateLimiter
+    streams: StreamHub
+    """Caps and feeds the process's event streams (one shared watcher of their jobs)."""
