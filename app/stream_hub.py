@@ -120,10 +120,10 @@ class JobFrame:
     job: Job | None
     """The row as read (``None``: the job is gone)."""
     attempt: int
-    iterations: tuple[str, ...]
-    """The event data of each iteration of the current attempt, JSON-encoded once."""
+    iterations: tuple[bytes, ...]
+    """Each iteration event of the current attempt as sent (id: its number), encoded once."""
     phase: tuple[int, str] | None
-    phase_data: str | None
+    phase_event: bytes | None
 
     @property
     def terminal(self) -> bool:
@@ -167,30 +167,32 @@ class _Watch:
             else:
                 encoded = self._encode(job, history, 0)
             phase = _phase_of(job)
-            phase_data = None
+            phase_event = None
             if phase is not None and job.status not in TERMINAL_STATUSES:
-                elapsed = (job.progress or {}).get("elapsed_s")
-                phase_data = json.dumps(
-                    {"job_id": self.job_id, "attempt": phase[0], "phase": phase[1]}
-                    | {"elapsed_s": elapsed}
-                )
-            frame = JobFrame(version, job, job.attempts, encoded, phase, phase_data)
+                data = {"job_id": self.job_id, "attempt": phase[0], "phase": phase[1]}
+                data["elapsed_s"] = (job.progress or {}).get("elapsed_s")
+                phase_event = ServerSentEvent(data=json.dumps(data), event="phase").encode()
+            frame = JobFrame(version, job, job.attempts, encoded, phase, phase_event)
         self.frame = frame
         woken, self.changed = self.changed, asyncio.Event()
         woken.set()
 
-    def _encode(self, job: Job, history: list[Any], start: int) -> tuple[str, ...]:
+    def _encode(self, job: Job, history: list[Any], start: int) -> tuple[bytes, ...]:
         return tuple(
-            json.dumps({"job_id": self.job_id, "attempt": job.attempts, **history[index]})
+            ServerSentEvent(
+                data=json.dumps({"job_id": self.job_id, "attempt": job.attempts, **history[index]}),
+                event="iteration",
+                id=str(index + 1),
+            ).encode()
             for index in range(start, len(history))
         )
 
-    def end_data(self, frame: JobFrame, end_payload: Callable[[Job], Any]) -> str:
-        """The ``end`` event's data of a terminal frame, made once for all streams."""
+    def end_event(self, frame: JobFrame, end_payload: Callable[[Job], Any], ident: int) -> bytes:
+        """The ``end`` event of a terminal frame with id ``ident``; its data made once."""
         if self._end is None or self._end[0] != frame.version:
             assert frame.job is not None
             self._end = (frame.version, json.dumps(end_payload(frame.job)))
-        return self._end[1]
+        return ServerSentEvent(data=self._end[1], event="end", id=str(ident)).encode()
 
 
 def read_changed(database: Database, known: dict[str, Head | None]) -> dict[str, Job | None]:
@@ -248,10 +250,11 @@ class StreamHub:
         slot: StreamSlot,
         end_payload: Callable[[Job], Any],
         after: int = 0,
-    ) -> AsyncIterator[ServerSentEvent]:
+    ) -> AsyncIterator[bytes]:
         """Stream the job's iterations from number ``after + 1`` on, a ``phase`` event when the
         attempt's phase changes, then one ``end`` event; ``slot`` is released at the end.
 
+        Each item is every event that is new to this stream, encoded (one write per change).
         ``end_payload`` turns the finished job's row into the data of the ``end`` event.
         """
         try:
@@ -350,7 +353,7 @@ class StreamHub:
 
 async def _follow(
     watch: _Watch, end_payload: Callable[[Job], Any], after: int
-) -> AsyncIterator[ServerSentEvent]:
+) -> AsyncIterator[bytes]:
     """One stream's cursor over the frames of its job."""
     sent = after
     attempt: int | None = None
@@ -367,16 +370,14 @@ async def _follow(
         if attempt is not None and frame.attempt != attempt:
             sent = 0  # a new attempt starts its history again
         attempt = frame.attempt
-        for index in range(sent, len(frame.iterations)):
-            yield ServerSentEvent(
-                data=frame.iterations[index], event="iteration", id=str(index + 1)
-            )
+        out = list(frame.iterations[sent:])
         sent = max(sent, len(frame.iterations))
-        if frame.phase_data is not None and frame.phase != phase:
+        if frame.phase_event is not None and frame.phase != phase:
             phase = frame.phase
-            yield ServerSentEvent(data=frame.phase_data, event="phase")
+            out.append(frame.phase_event)
         if frame.terminal:
-            yield ServerSentEvent(
-                data=watch.end_data(frame, end_payload), event="end", id=str(sent + 1)
-            )
+            out.append(watch.end_event(frame, end_payload, sent + 1))
+        if out:
+            yield b"".join(out)
+        if frame.terminal:
             return

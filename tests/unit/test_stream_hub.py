@@ -8,12 +8,12 @@ import json
 import time
 import uuid
 from collections.abc import AsyncIterator, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 from sqlalchemy import event, update
-from sse_starlette.sse import ServerSentEvent
 
 from app.errors import ApiError
 from app.events import PollingWaker
@@ -66,15 +66,34 @@ def end_payload(job: Job) -> dict[str, Any]:
     return {"id": job.id, "status": job.status}
 
 
-async def collect(stream: AsyncIterator[ServerSentEvent], into: list[ServerSentEvent]) -> None:
+@dataclass
+class Event:
+    """One parsed server-sent event."""
+
+    event: str | None
+    id: str | None
+    data: str
+
+
+def parse(chunk: bytes) -> list[Event]:
+    """The events of one written chunk (the wire format: fields, a blank line after each)."""
+    events = []
+    for block in chunk.decode("utf-8").split("\r\n\r\n"):
+        if block:
+            fields = dict(line.split(": ", 1) for line in block.split("\r\n"))
+            events.append(Event(fields.get("event"), fields.get("id"), fields["data"]))
+    return events
+
+
+async def collect(stream: AsyncIterator[bytes], into: list[Event]) -> None:
     """Append every event of ``stream`` to ``into`` until it ends."""
-    async for item in stream:
-        into.append(item)
+    async for chunk in stream:
+        into.extend(parse(chunk))
 
 
-def summary(events: list[ServerSentEvent]) -> list[tuple[str | None, str | None, Any]]:
+def summary(events: list[Event]) -> list[tuple[str | None, str | None, Any]]:
     """(event, id, data) of each event, data decoded."""
-    return [(e.event, e.id, json.loads(str(e.data))) for e in events]
+    return [(e.event, e.id, json.loads(e.data)) for e in events]
 
 
 def test_slots_cap_each_client_and_the_total_and_come_back_when_released() -> None:
@@ -103,9 +122,9 @@ def test_every_stream_gets_iterations_phases_and_the_end_from_one_watcher(
 ) -> None:
     job_id = add_running_job(database)
 
-    async def run() -> tuple[list[list[ServerSentEvent]], int]:
+    async def run() -> tuple[list[list[Event]], int]:
         hub = StreamHub(database, PollingWaker(0.02), max_streams=10, max_streams_per_client=10)
-        streams: list[list[ServerSentEvent]] = [[], [], []]
+        streams: list[list[Event]] = [[], [], []]
         afters = [0, 0, 2]  # the third resumes with Last-Event-ID: 2
         tasks = [
             asyncio.create_task(
@@ -170,7 +189,7 @@ def test_a_notice_wakes_the_streams_long_before_the_poll(database: Database) -> 
     async def run() -> float:
         waker = PollingWaker(interval_s=5.0)
         hub = StreamHub(database, waker, max_streams=10, max_streams_per_client=10)
-        events: list[ServerSentEvent] = []
+        events: list[Event] = []
         task = asyncio.create_task(
             collect(hub.events(job_id, slot=hub.admit(OWNER), end_payload=end_payload), events)
         )
@@ -207,7 +226,7 @@ def count_queries(database: Database, streams: int, seconds: float) -> tuple[int
             max_streams_per_client=streams,
             min_read_gap_s=0.05,
         )
-        sinks: list[list[ServerSentEvent]] = [[] for _ in range(streams)]
+        sinks: list[list[Event]] = [[] for _ in range(streams)]
         tasks = [
             asyncio.create_task(
                 collect(hub.events(job_id, slot=hub.admit(OWNER), end_payload=end_payload), sink)
