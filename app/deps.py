@@ -6,6 +6,7 @@ instead of spending a thread-pool round trip on each.
 
 from __future__ import annotations
 
+import re
 from typing import Annotated
 
 from fastapi import Depends, Request, Security
@@ -13,7 +14,7 @@ from fastapi.security import APIKeyHeader
 
 from app.auth import API_KEY_HEADER, Principal, authenticate
 from app.dispatch import Dispatcher
-from app.errors import ApiError
+from app.errors import ApiError, not_found
 from app.settings import Settings
 from app.state import ServiceState
 from app.storage.session import Database
@@ -49,11 +50,25 @@ async def get_dispatcher(service: ServiceDep) -> Dispatcher:
     return service.dispatcher
 
 
+_JOB_ID = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}")
+"""The form of every job id (a UUID in canonical form); nothing else can name a job."""
+
+
 def get_principal(
-    service: ServiceDep, api_key: Annotated[str | None, Security(api_key_header)] = None
+    request: Request,
+    service: ServiceDep,
+    api_key: Annotated[str | None, Security(api_key_header)] = None,
 ) -> Principal:
-    """The authenticated caller (a database lookup in api-keys mode, so a sync dependency)."""
-    return authenticate(service.database, service.settings, api_key)
+    """The authenticated caller (a database lookup in api-keys mode, so a sync dependency).
+
+    It guards every route of a job too: a ``job_id`` that is no job id (``%00``, megabytes, ...)
+    is the 404 of an unknown job once the caller is known, and never reaches the database.
+    """
+    principal = authenticate(service.database, service.settings, api_key)
+    job_id = request.path_params.get("job_id")
+    if isinstance(job_id, str) and _JOB_ID.fullmatch(job_id) is None:
+        raise not_found("job", job_id if len(job_id) <= 64 else f"{job_id[:64]}...")
+    return principal
 
 
 PrincipalDep = Annotated[Principal, Depends(get_principal)]

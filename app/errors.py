@@ -1,7 +1,8 @@
 """One error shape for every response: ``{"error": {"code", "message", "field", "issues"}}``.
 
-Handlers turn the service's own :class:`ApiError`, request validation errors, unknown routes and
-unexpected exceptions into that shape, so clients parse a single format.
+Handlers turn the service's own :class:`ApiError`, request validation errors, unknown routes,
+an unreachable database and unexpected exceptions into that shape, so clients parse a single
+format. A list of issues is cut to its first :data:`MAX_ISSUES`; ``issues_total`` counts them all.
 """
 
 from __future__ import annotations
@@ -13,9 +14,16 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 log = logging.getLogger(__name__)
+
+MAX_ISSUES = 50
+"""Most issues one error response lists (the first ones); ``issues_total`` counts them all."""
+DATABASE_RETRY_AFTER_S = 5
+"""Retry-After of a request refused because the database is unreachable."""
 
 
 class ApiError(Exception):
@@ -30,14 +38,24 @@ class ApiError(Exception):
         field: str | None = None,
         issues: list[dict[str, Any]] | None = None,
         headers: dict[str, str] | None = None,
+        issues_total: int | None = None,
     ) -> None:
         super().__init__(message)
         self.status = status
         self.code = code
         self.message = message
         self.field = field
-        self.issues = issues
+        self.issues = issues[:MAX_ISSUES] if issues is not None else None
+        self.issues_total = issues_total if issues_total is not None else len(issues or ())
         self.headers = headers
+
+
+def issues_message(what: str, total: int, first_field: str | None, first_message: str) -> str:
+    """The message of a 422 listing issues: how many, the first, and whether the list is cut."""
+    message = f"{what} {total} error(s); first: {first_field or '(document)'}: {first_message}"
+    if total > MAX_ISSUES:
+        message += f" (issues lists the first {MAX_ISSUES})"
+    return message
 
 
 def error_body(
@@ -45,11 +63,13 @@ def error_body(
     message: str,
     field: str | None = None,
     issues: list[dict[str, Any]] | None = None,
+    issues_total: int | None = None,
 ) -> dict[str, Any]:
-    """The JSON body of an error."""
+    """The JSON body of an error; ``issues`` is cut to the first :data:`MAX_ISSUES`."""
     body: dict[str, Any] = {"code": code, "message": message, "field": field}
     if issues is not None:
-        body["issues"] = issues
+        body["issues"] = issues[:MAX_ISSUES]
+        body["issues_total"] = issues_total if issues_total is not None else len(issues)
     return {"error": body}
 
 
@@ -129,7 +149,7 @@ def _dotted(loc: tuple[Any, ...] | list[Any]) -> str:
 async def _api_error(_: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, ApiError)
     return JSONResponse(
-        error_body(exc.code, exc.message, exc.field, exc.issues),
+        error_body(exc.code, exc.message, exc.field, exc.issues, exc.issues_total),
         status_code=exc.status,
         headers=exc.headers,
     )
@@ -140,14 +160,18 @@ async def _request_validation(request: Request, exc: Exception) -> JSONResponse:
     malformed = _body_error(request, exc)
     if malformed is not None:
         return await _api_error(request, malformed)
+    errors = exc.errors()
     issues = [
         {"field": _dotted(e.get("loc", ())), "message": str(e.get("msg")), "code": str(e["type"])}
-        for e in exc.errors()
+        for e in errors[:MAX_ISSUES]
     ]
     first = issues[0] if issues else {"field": None, "message": "invalid request"}
-    message = f"{len(issues)} invalid field(s): {first['field']}: {first['message']}"
+    message = f"{len(errors)} invalid field(s): {first['field']}: {first['message']}"
+    if len(errors) > MAX_ISSUES:
+        message += f" (issues lists the first {MAX_ISSUES})"
     return JSONResponse(
-        error_body("invalid_request", message, first["field"], issues), status_code=422
+        error_body("invalid_request", message, first["field"], issues, len(errors)),
+        status_code=422,
     )
 
 
@@ -165,6 +189,32 @@ async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+def database_unavailable(exc: Exception) -> bool:
+    """Whether ``exc`` says the database cannot be reached (down, restarting, pool exhausted)."""
+    if isinstance(exc, OperationalError | InterfaceError | PoolTimeoutError):
+        return True
+    return isinstance(exc, DBAPIError) and exc.connection_invalidated
+
+
+async def _database_error(request: Request, exc: Exception) -> JSONResponse:
+    if not database_unavailable(exc):
+        return await _unexpected(request, exc)
+    log.warning(
+        "database unavailable on %s %s: %s",
+        request.method,
+        request.url.path,
+        str(getattr(exc, "orig", None) or exc).strip().splitlines()[0],
+    )
+    return JSONResponse(
+        error_body(
+            "database_unavailable",
+            f"the database is unreachable; retry after {DATABASE_RETRY_AFTER_S} s",
+        ),
+        status_code=503,
+        headers={"Retry-After": str(DATABASE_RETRY_AFTER_S)},
+    )
+
+
 async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
     log.exception("unhandled error on %s %s", request.method, request.url.path, exc_info=exc)
     return JSONResponse(error_body("internal_error", "internal server error"), status_code=500)
@@ -175,4 +225,6 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(ApiError, _api_error)
     app.add_exception_handler(RequestValidationError, _request_validation)
     app.add_exception_handler(StarletteHTTPException, _http_error)
+    for database_error in (DBAPIError, PoolTimeoutError):  # handled here: the connection stays
+        app.add_exception_handler(database_error, _database_error)
     app.add_exception_handler(Exception, _unexpected)

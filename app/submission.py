@@ -21,7 +21,7 @@ from typing import Annotated, Any, Literal, Union, get_args, get_origin
 from pydantic import BaseModel, Field, TypeAdapter, ValidationError
 from pydantic.fields import FieldInfo
 
-from app.errors import ApiError
+from app.errors import MAX_ISSUES, ApiError, issues_message
 from app.schemas import FieldIssue, ProblemDocument, issues_from_validation_error
 from app.views import ScenarioJobRequest
 
@@ -188,24 +188,37 @@ def apply_overrides(document: dict[str, Any], overrides: dict[str, Any]) -> dict
 
 
 def request_fingerprint(body: Any) -> str:
-    """SHA-256 of the body's canonical JSON (key order and spacing do not matter)."""
-    canonical = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    """SHA-256 of the body's canonical JSON (key order and spacing do not matter).
+
+    A ``NaN`` or infinite number is hashed as its JSON token: the body is fingerprinted before
+    it is validated, and validation refuses such a number naming its field.
+    """
+    canonical = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=True)
     return hashlib.sha256(canonical.encode()).hexdigest()
 
 
-def invalid(issues: list[FieldIssue], what: str = "problem") -> ApiError:
-    """The 422 error listing every issue."""
+def invalid(issues: list[FieldIssue], what: str = "problem", total: int | None = None) -> ApiError:
+    """The 422 error listing the issues (the first ``MAX_ISSUES`` of ``total``, if given)."""
+    total = len(issues) if total is None else total
     first = issues[0] if issues else None
-    message = f"the {what} has {len(issues)} error(s)"
-    if first is not None:
-        message += f"; first: {first.field or '(document)'}: {first.message}"
+    if first is None:
+        message = f"the {what} has {total} error(s)"
+    else:
+        message = issues_message(f"the {what} has", total, first.field, first.message)
     return ApiError(
         422,
         f"invalid_{what}",
         message,
         field=first.field if first else None,
-        issues=[i.model_dump() for i in issues],
+        issues=[i.model_dump() for i in issues[:MAX_ISSUES]],
+        issues_total=total,
     )
+
+
+def _validation_issues(exc: ValidationError, what: str = "problem") -> ApiError:
+    """The 422 error of a pydantic ``ValidationError``, converting only the issues it lists."""
+    listed = issues_from_validation_error(exc, limit=MAX_ISSUES)
+    return invalid(listed, what, total=exc.error_count())
 
 
 def _scenario_document(body: dict[str, Any]) -> tuple[dict[str, Any], str]:
@@ -214,7 +227,7 @@ def _scenario_document(body: dict[str, Any]) -> tuple[dict[str, Any], str]:
     try:
         request = ScenarioJobRequest.model_validate(body)
     except ValidationError as exc:
-        raise invalid(issues_from_validation_error(exc), "request") from None
+        raise _validation_issues(exc, "request") from None
     try:
         scenario = get_scenario(request.scenario)
     except KeyError as exc:
@@ -238,7 +251,7 @@ def resolve_submission(body: Any) -> Submission:
     try:
         problem = ProblemDocument.model_validate(document)
     except ValidationError as exc:
-        raise invalid(issues_from_validation_error(exc)) from None
+        raise _validation_issues(exc) from None
     return Submission(problem=problem, document=problem.model_dump(mode="json"), scenario=scenario)
 
 

@@ -403,14 +403,16 @@ def _solve(
             f"the worker's soft time limit of {attempt.limits.soft_s:g} s was reached",
             attempt.elapsed(),
         )
-    except Exception as exc:
-        log.exception("job %s: the solver raised", attempt.job_id)
+    except Exception:  # the job says only that it failed; the worker's log has the details
+        error_id = f"{time.time_ns():x}"
+        log.exception("job %s: the solver raised (error id %s)", attempt.job_id, error_id)
         return Outcome(
             JobStatus.FAILED.value,
             None,
             list(attempt.history),
             "internal_error",
-            f"{type(exc).__name__}: {exc}",
+            f"the solver failed unexpectedly (error id {error_id}; the worker's log has the "
+            "details)",
             attempt.elapsed(),
         )
     if not isinstance(result, dict):

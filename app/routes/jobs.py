@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, Header, Query, Response
+from fastapi import APIRouter, Header, Query, Response
 
 from app import jobs_service
+from app.body import ProblemBody, problem_request_body
 from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep, SubmitterDep
 from app.routes.examples import HISTORY_EXAMPLES, PROBLEM_EXAMPLES, RESULT_EXAMPLES
 from app.views import ErrorResponse, HistoryView, JobPage, JobStatusName, JobView
@@ -35,10 +36,10 @@ _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorResponse}}
             "description": "The queue is unreachable; nothing was stored, retry after Retry-After.",
         },
     },
-    openapi_extra={"x-problem-body": True},
+    openapi_extra=problem_request_body(PROBLEM_EXAMPLES),
 )
 def submit_job(
-    body: Annotated[dict[str, Any], Body(openapi_examples=PROBLEM_EXAMPLES)],
+    body: ProblemBody,
     response: Response,
     database: DatabaseDep,
     dispatcher: DispatcherDep,

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from fastapi import APIRouter
 
-from fastapi import APIRouter, Body
-
+from app.body import ProblemBody, problem_request_body
 from app.caps import check_server_caps
 from app.deps import SettingsDep
 from app.routes.examples import VALIDATE_EXAMPLES
@@ -20,10 +19,10 @@ router = APIRouter(prefix="/v1/problems", tags=["problems"])
     response_model=ValidationReport,
     responses={422: {"model": ErrorResponse, "description": "Every invalid field, listed."}},
     summary="Validate a problem",
-    openapi_extra={"x-problem-body": True},
+    openapi_extra=problem_request_body(VALIDATE_EXAMPLES),
 )
 def validate_problem(
-    body: Annotated[dict[str, Any], Body(openapi_examples=VALIDATE_EXAMPLES)],
+    body: ProblemBody,
     settings: SettingsDep,
 ) -> ValidationReport:
     """All errors at once (422), or the normalized document with defaults filled in (200)."""

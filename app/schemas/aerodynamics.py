@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.base import (
     FieldProblem,
     StrictModel,
@@ -14,6 +15,13 @@ from app.schemas.base import (
     untagged_errors,
 )
 from app.schemas.limits import MAX_POLYNOMIAL_COEFFICIENTS, MAX_TABLE_POINTS
+
+Coefficient = Annotated[
+    float, Field(ge=-bounds.AERO_COEFFICIENT_MAX, le=bounds.AERO_COEFFICIENT_MAX)
+]
+"""A lift or drag coefficient, or a coefficient of their polynomials, bounded in magnitude."""
+TableRow = Annotated[list[Coefficient], Field(max_length=MAX_TABLE_POINTS, fail_fast=True)]
+"""One row of a coefficient table (one entry per Mach breakpoint)."""
 
 
 class PolynomialAerodynamics(StrictModel):
@@ -24,13 +32,13 @@ class PolynomialAerodynamics(StrictModel):
     """
 
     model: Literal["polynomial"] = Field("polynomial", description="Aerodynamic model name.")
-    cl_coefficients: list[float] = Field(
+    cl_coefficients: list[Coefficient] = Field(
         ...,
         min_length=1,
         max_length=MAX_POLYNOMIAL_COEFFICIENTS,
         description="c_0..c_n of CL = sum_k c_k * alpha_deg^k (alpha in degrees), lowest first.",
     )
-    cd_coefficients: list[float] = Field(
+    cd_coefficients: list[Coefficient] = Field(
         ...,
         min_length=1,
         max_length=MAX_POLYNOMIAL_COEFFICIENTS,
@@ -52,14 +60,29 @@ class ParabolicPolarAerodynamics(StrictModel):
     model: Literal["parabolic_polar"] = Field(
         "parabolic_polar", description="Aerodynamic model name."
     )
-    cl_star: float = Field(..., gt=0, description="Lift coefficient at maximum L/D, > 0.")
-    cd0: float = Field(..., gt=0, description="Zero-lift drag coefficient, > 0.")
-    k_induced: float = Field(..., gt=0, description="Induced-drag factor k of CD = cd0 + k CL^2.")
+    cl_star: float = Field(
+        ...,
+        gt=0,
+        le=bounds.AERO_COEFFICIENT_MAX,
+        description="Lift coefficient at maximum L/D, > 0.",
+    )
+    cd0: float = Field(
+        ..., gt=0, le=bounds.AERO_COEFFICIENT_MAX, description="Zero-lift drag coefficient, > 0."
+    )
+    k_induced: float = Field(
+        ...,
+        gt=0,
+        le=bounds.AERO_COEFFICIENT_MAX,
+        description="Induced-drag factor k of CD = cd0 + k CL^2.",
+    )
     lambda_min: float = Field(
-        0.0, ge=0, description="Lower bound of the normalized lift lambda = CL/cl_star, >= 0."
+        0.0,
+        ge=0,
+        le=10,
+        description="Lower bound of the normalized lift lambda = CL/cl_star, >= 0.",
     )
     lambda_max: float = Field(
-        1.0, description="Upper bound of the normalized lift lambda, > lambda_min."
+        1.0, le=10, description="Upper bound of the normalized lift lambda, > lambda_min."
     )
 
     @model_validator(mode="after")
@@ -84,23 +107,31 @@ class TableAerodynamics(StrictModel):
     """CL and CD tabulated on an (angle of attack, Mach) grid, rows along alpha."""
 
     model: Literal["table"] = Field("table", description="Aerodynamic model name.")
-    alpha_deg: list[float] = Field(
+    alpha_deg: list[Annotated[float, Field(ge=-90, le=90)]] = Field(
         ...,
         min_length=2,
         max_length=MAX_TABLE_POINTS,
+        fail_fast=True,
         description="Angle of attack breakpoints, deg, strictly increasing.",
     )
-    mach: list[float] = Field(
+    mach: list[Annotated[float, Field(ge=0, le=bounds.MACH_MAX)]] = Field(
         ...,
         min_length=2,
         max_length=MAX_TABLE_POINTS,
+        fail_fast=True,
         description="Mach number breakpoints, strictly increasing.",
     )
-    cl: list[list[float]] = Field(
-        ..., description="Lift coefficient, cl[i][j] at alpha_deg[i] and mach[j]."
+    cl: list[TableRow] = Field(
+        ...,
+        max_length=MAX_TABLE_POINTS,
+        fail_fast=True,
+        description="Lift coefficient, cl[i][j] at alpha_deg[i] and mach[j].",
     )
-    cd: list[list[float]] = Field(
-        ..., description="Drag coefficient, cd[i][j] at alpha_deg[i] and mach[j]."
+    cd: list[TableRow] = Field(
+        ...,
+        max_length=MAX_TABLE_POINTS,
+        fail_fast=True,
+        description="Drag coefficient, cd[i][j] at alpha_deg[i] and mach[j].",
     )
     interpolation: Literal["linear", "cubic"] = Field(
         "linear", description="Interpolation between breakpoints."

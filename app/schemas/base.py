@@ -7,12 +7,19 @@ cross-field check reports its problems at the path of the offending field.
 from __future__ import annotations
 
 import itertools
+import re
 import typing
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, ValidationError, ValidatorFunctionWrapHandler
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    ValidationError,
+    ValidatorFunctionWrapHandler,
+)
 from pydantic import WrapValidator as _WrapValidator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 from pydantic_core import core_schema as _core_schema
@@ -20,6 +27,30 @@ from pydantic_core import core_schema as _core_schema
 Loc = tuple[str | int, ...]
 
 _KNOWN_ERROR_TYPES: frozenset[str] = frozenset(typing.get_args(_core_schema.ErrorType))
+
+
+_UNSTORABLE = re.compile("[\x00\ud800-\udfff]")
+
+
+def _storable(value: str) -> str:
+    """``value``, unless it holds a NUL character or an unpaired surrogate (422 naming why)."""
+    found = _UNSTORABLE.search(value)
+    if found is None:
+        return value
+    if found.group() == "\x00":
+        raise PydanticCustomError(
+            "nul_character", "contains a NUL character (U+0000), which cannot be stored"
+        )
+    raise PydanticCustomError(
+        "invalid_text",
+        "contains an unpaired surrogate (U+{point}), which is not a character",
+        {"point": f"{ord(found.group()):04X}"},
+    )
+
+
+Text = Annotated[str, AfterValidator(_storable)]
+"""A free-text string of the contract: any characters but NUL and unpaired surrogates, which
+neither PostgreSQL text nor UTF-8 can hold."""
 
 
 class StrictModel(BaseModel):

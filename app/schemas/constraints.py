@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field, field_validator
 from pydantic_core import PydanticCustomError
 
+from app.schemas import bounds
 from app.schemas.base import StrictModel
 
 
@@ -15,16 +18,31 @@ class HeatRateLimit(StrictModel):
     Space Shuttle heating correction used by Wang, Leonard, Savvaris and Tsourdos.
     """
 
-    max_W_m2: float = Field(..., gt=0, description="Largest admissible heat rate, W/m^2.")
+    max_W_m2: float = Field(
+        ...,
+        gt=0,
+        le=bounds.HEAT_RATE_MAX_W_M2,
+        description="Largest admissible heat rate, W/m^2.",
+    )
     k_q: float = Field(
         ...,
         gt=0,
+        le=bounds.HEATING_CONSTANT_MAX,
         description="Heating constant in SI: Qdot[W/m^2] = k_q * rho^density_exponent * "
         "V^velocity_exponent * alpha_factor, rho in kg/m^3, V in m/s.",
     )
-    velocity_exponent: float = Field(3.15, gt=0, description="Exponent m of the speed V.")
-    density_exponent: float = Field(0.5, gt=0, description="Exponent n of the density rho.")
-    alpha_polynomial: list[float] | None = Field(
+    velocity_exponent: float = Field(
+        3.15, gt=0, le=bounds.EXPONENT_MAX, description="Exponent m of the speed V."
+    )
+    density_exponent: float = Field(
+        0.5, gt=0, le=bounds.EXPONENT_MAX, description="Exponent n of the density rho."
+    )
+    alpha_polynomial: (
+        list[
+            Annotated[float, Field(ge=-bounds.AERO_COEFFICIENT_MAX, le=bounds.AERO_COEFFICIENT_MAX)]
+        ]
+        | None
+    ) = Field(
         None,
         min_length=1,
         max_length=4,
@@ -35,14 +53,22 @@ class HeatRateLimit(StrictModel):
 class DynamicPressureLimit(StrictModel):
     """Dynamic pressure bound: rho V^2 / 2 <= max_Pa."""
 
-    max_Pa: float = Field(..., gt=0, description="Largest admissible dynamic pressure, Pa.")
+    max_Pa: float = Field(
+        ...,
+        gt=0,
+        le=bounds.DYNAMIC_PRESSURE_MAX_PA,
+        description="Largest admissible dynamic pressure, Pa.",
+    )
 
 
 class LoadFactorLimit(StrictModel):
     """Aerodynamic load factor bound: sqrt(L^2 + D^2) / (m g0) <= max_g."""
 
     max_g: float = Field(
-        ..., gt=0, description="Largest admissible load factor, in units of g0 (surface gravity)."
+        ...,
+        gt=0,
+        le=bounds.LOAD_FACTOR_MAX_G,
+        description="Largest admissible load factor, in units of g0 (surface gravity).",
     )
 
 
@@ -63,10 +89,16 @@ class ControlLimits(StrictModel):
         80.0, description="Bound on |bank angle|, deg, in (0, 90] (lift never points down)."
     )
     bank_rate_max_deg_s: float | None = Field(
-        None, gt=0, description="Bound on |d bank/dt|, deg/s; none means unbounded."
+        None,
+        gt=0,
+        le=bounds.ANGLE_RATE_MAX_DEG_S,
+        description="Bound on |d bank/dt|, deg/s; none means unbounded.",
     )
     alpha_rate_max_deg_s: float | None = Field(
-        None, gt=0, description="Bound on |d alpha/dt|, deg/s; none means unbounded."
+        None,
+        gt=0,
+        le=bounds.ANGLE_RATE_MAX_DEG_S,
+        description="Bound on |d alpha/dt|, deg/s; none means unbounded.",
     )
 
     @field_validator("bank_max_deg")

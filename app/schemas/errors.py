@@ -68,11 +68,15 @@ def _location(error: Any) -> list[str | int]:
     return loc
 
 
-def issues_from_validation_error(exc: ValidationError) -> list[FieldIssue]:
-    """Every error of ``exc`` as a ``FieldIssue`` with a dotted field path, in pydantic's order."""
+def issues_from_validation_error(
+    exc: ValidationError, limit: int | None = None
+) -> list[FieldIssue]:
+    """The errors of ``exc`` (the first ``limit``, else all) as ``FieldIssue`` with dotted field
+    paths, in pydantic's order; ``exc.error_count()`` tells how many there are in all."""
+    errors = exc.errors(include_url=False, include_context=True, include_input=False)
     return [
         FieldIssue(
             field=dotted_path(_location(error)), message=_readable(error), code=error["type"]
         )
-        for error in exc.errors(include_url=False)
+        for error in errors[:limit]
     ]

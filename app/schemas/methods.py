@@ -10,6 +10,7 @@ from typing import Annotated, Any, Final, Literal
 
 from pydantic import BeforeValidator, Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.base import FieldProblem, StrictModel, raise_problems, untagged_errors
 from app.schemas.limits import MAX_ITERATIONS, MAX_NODES, MAX_TIME_LIMIT_S
 
@@ -17,7 +18,28 @@ DEFAULT_METHOD: Final[str] = "energy-scp"
 """Method used when a document names none."""
 
 
-class EnergyStopTolerance(StrictModel):
+class BoundedOptions(StrictModel):
+    """Options whose every number is at most ``bounds.WEIGHT_MAX`` in magnitude (the models
+    bound each number from below themselves; this keeps absurd magnitudes from the solver)."""
+
+    @model_validator(mode="after")
+    def _magnitudes(self) -> BoundedOptions:
+        problems = [
+            FieldProblem(
+                (name,),
+                "magnitude_limit",
+                f"{value:g} exceeds the largest magnitude {bounds.WEIGHT_MAX:g} a method option "
+                "may have",
+                value,
+            )
+            for name, value in self
+            if isinstance(value, float) and abs(value) > bounds.WEIGHT_MAX
+        ]
+        raise_problems(type(self).__name__, problems)
+        return self
+
+
+class EnergyStopTolerance(BoundedOptions):
     """Convergence test of energy-domain SCP: every state changes less than its tolerance.
 
     Values from Jung, Kim, Choi and Lee, sec. 4; the paper lists four values for five states,
@@ -33,7 +55,7 @@ class EnergyStopTolerance(StrictModel):
     heading_deg: float = Field(1.0, gt=0, description="Heading change tolerance, deg.")
 
 
-class ScpRunOptions(StrictModel):
+class ScpRunOptions(BoundedOptions):
     """Options every SCP method shares: iteration and time budgets, the conic solver."""
 
     max_iterations: int = Field(
@@ -125,7 +147,7 @@ class EnergyScpOptions(ScpRunOptions):
     )
 
 
-class FohStopTolerance(StrictModel):
+class FohStopTolerance(BoundedOptions):
     """Convergence test of the time-domain SCP: every node moves less than these between
     iterations, the interval lengths less than ``interval_s`` and the cost by less than
     ``relative_cost``. Tighter than paper 002's (1000 m, 1 deg, 1 deg, 100 m/s, 1 deg, 1 deg, 5 s)

@@ -6,6 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.base import FieldProblem, StrictModel, raise_problems
 from app.schemas.limits import MAX_OBJECTIVE_TERMS
 
@@ -26,7 +27,9 @@ class ObjectiveTerm(StrictModel):
     """One term of the objective and its positive weight."""
 
     name: ObjectiveName = Field(..., description="Which performance measure to optimize.")
-    weight: float = Field(1.0, gt=0, description="Relative weight of the term, > 0.")
+    weight: float = Field(
+        1.0, gt=0, le=bounds.WEIGHT_MAX, description="Relative weight of the term, > 0."
+    )
 
 
 class Objective(StrictModel):

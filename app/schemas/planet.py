@@ -6,6 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.base import FieldProblem, StrictModel, raise_problems, untagged_errors
 
 
@@ -14,12 +15,21 @@ class ExponentialAtmosphere(StrictModel):
 
     model: Literal["exponential"] = Field("exponential", description="Atmosphere model name.")
     density_sea_level_kg_m3: float = Field(
-        1.225, gt=0, description="Density rho0 at zero altitude, kg/m^3."
+        1.225,
+        gt=0,
+        le=bounds.DENSITY_MAX_KG_M3,
+        description="Density rho0 at zero altitude, kg/m^3.",
     )
-    scale_height_m: float = Field(..., gt=0, description="Density scale height H, m.")
-    speed_of_sound_m_s: float = Field(
+    scale_height_m: Annotated[float, bounds.minimum(bounds.SCALE_HEIGHT_M[0])] = Field(
+        ...,
+        gt=0,
+        le=bounds.SCALE_HEIGHT_M[1],
+        description="Density scale height H, m.",
+    )
+    speed_of_sound_m_s: Annotated[float, bounds.minimum(bounds.SPEED_OF_SOUND_M_S[0])] = Field(
         295.07,
         gt=0,
+        le=bounds.SPEED_OF_SOUND_M_S[1],
         description="Constant speed of sound, m/s; the model has no temperature, so this is "
         "used only to form the Mach number for Mach-dependent aerodynamics.",
     )
@@ -44,19 +54,37 @@ class Planet(StrictModel):
     Exactly one of ``g0_m_s2`` and ``mu_m3_s2`` is given (``g0_m_s2`` defaults to 9.81).
     """
 
-    radius_m: float = Field(6378140.0, gt=0, description="Reference sphere radius R0, m.")
-    g0_m_s2: float | None = Field(
-        9.81,
+    radius_m: Annotated[float, bounds.minimum(bounds.RADIUS_M[0])] = Field(
+        6378140.0,
         gt=0,
+        le=bounds.RADIUS_M[1],
+        description="Reference sphere radius R0, m.",
+    )
+    g0_m_s2: (
+        Annotated[
+            float,
+            Field(gt=0, le=bounds.SURFACE_GRAVITY_M_S2[1]),
+            bounds.minimum(bounds.SURFACE_GRAVITY_M_S2[0]),
+        ]
+        | None
+    ) = Field(
+        9.81,
         description="Gravitational acceleration at radius R0, m/s^2. Defaults to 9.81 unless "
         "mu_m3_s2 is given; giving both is an error.",
     )
     mu_m3_s2: float | None = Field(
-        None, gt=0, description="Gravitational parameter mu, m^3/s^2; then g0 = mu / R0^2."
+        None,
+        gt=0,
+        le=bounds.MU_MAX_M3_S2,
+        description="Gravitational parameter mu, m^3/s^2; then g0 = mu / R0^2, which must lie "
+        f"in [{bounds.SURFACE_GRAVITY_M_S2[0]:g}, {bounds.SURFACE_GRAVITY_M_S2[1]:g}] m/s^2.",
     )
     rotation: bool = Field(False, description="Whether the planet's rotation enters the dynamics.")
     rotation_rate_rad_s: float = Field(
-        7.292115e-5, ge=0, description="Rotation rate, rad/s (used when `rotation` is true)."
+        7.292115e-5,
+        ge=0,
+        le=bounds.ROTATION_RATE_MAX_RAD_S,
+        description="Rotation rate, rad/s (used when `rotation` is true).",
     )
     atmosphere: Atmosphere = Field(..., description="Atmosphere model.")
 
@@ -79,6 +107,20 @@ class Planet(StrictModel):
                         "gravity_spec",
                         "exactly one of g0_m_s2 and mu_m3_s2 must be given",
                         self.g0_m_s2,
+                    )
+                ],
+            )
+        low, high = bounds.SURFACE_GRAVITY_M_S2
+        if self.mu_m3_s2 is not None and not low <= self.surface_gravity_m_s2 <= high:
+            raise_problems(
+                "Planet",
+                [
+                    FieldProblem(
+                        ("mu_m3_s2",),
+                        "surface_gravity_range",
+                        f"mu / R0^2 = {self.surface_gravity_m_s2:g} m/s^2 is outside "
+                        f"[{low:g}, {high:g}] m/s^2",
+                        self.mu_m3_s2,
                     )
                 ],
             )

@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import ConfigDict, Field, model_validator
 
-from app.schemas.base import FieldProblem, StrictModel, raise_problems
+from app.schemas.base import FieldProblem, StrictModel, Text, raise_problems
 from app.schemas.constraints import ControlLimits, PathConstraints
 from app.schemas.examples import RLV_MIN_HEAT_LOAD
 from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_WAYPOINTS
@@ -33,8 +33,8 @@ class ProblemDocument(StrictModel):
     schema_version: Literal["1.0"] = Field(
         SCHEMA_VERSION, description="Version of this contract; only 1.0 exists."
     )
-    name: str | None = Field(None, max_length=200, description="Short label of the problem.")
-    description: str | None = Field(
+    name: Text | None = Field(None, max_length=200, description="Short label of the problem.")
+    description: Text | None = Field(
         None, max_length=10_000, description="Free-text description of the problem."
     )
     vehicle: Vehicle = Field(..., description="The entry vehicle.")

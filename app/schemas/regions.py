@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from app.schemas.base import FieldProblem, StrictModel, raise_problems
+from app.schemas.base import FieldProblem, StrictModel, Text, raise_problems
 from app.schemas.geometry import central_angle_rad
 
 
@@ -15,7 +15,7 @@ class _Circle(StrictModel):
     """A spherical cap given by its center and exactly one of a surface radius or angular radius."""
 
     radius_km: float | None = Field(
-        None, gt=0, description="Radius along the surface, km; give this or radius_deg."
+        None, gt=0, le=1e6, description="Radius along the surface, km; give this or radius_deg."
     )
     radius_deg: float | None = Field(
         None,
@@ -68,7 +68,7 @@ class _Circle(StrictModel):
 class NoFlyZone(_Circle):
     """A circular zone the ground track must stay out of (an infinitely tall cylinder)."""
 
-    name: str | None = Field(None, max_length=200, description="Label of the zone.")
+    name: Text | None = Field(None, max_length=200, description="Label of the zone.")
     center_latitude_deg: float = Field(
         ..., ge=-90, le=90, description="Latitude of the zone's center, deg."
     )

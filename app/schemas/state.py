@@ -6,13 +6,19 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.base import FieldProblem, StrictModel, raise_problems, untagged_errors
 
 
 class InitialState(StrictModel):
     """The fully specified state at the entry interface (spherical, planet-relative)."""
 
-    altitude_m: float = Field(..., gt=0, description="Altitude above the reference sphere, m.")
+    altitude_m: float = Field(
+        ...,
+        gt=0,
+        le=bounds.ALTITUDE_MAX_M,
+        description=f"Altitude above the reference sphere, m, in (0, {bounds.ALTITUDE_MAX_M:g}].",
+    )
     longitude_deg: float = Field(..., ge=-180, le=180, description="Longitude, deg, [-180, 180].")
     latitude_deg: float = Field(
         ...,
@@ -21,14 +27,24 @@ class InitialState(StrictModel):
         description="Geocentric latitude, deg, strictly inside (-90, 90): the spherical "
         "equations of motion are singular at the poles.",
     )
-    velocity_m_s: float = Field(..., gt=0, description="Planet-relative speed, m/s, > 0.")
+    velocity_m_s: float = Field(
+        ...,
+        gt=0,
+        le=bounds.SPEED_MAX_M_S,
+        description=f"Planet-relative speed, m/s, in (0, {bounds.SPEED_MAX_M_S:g}].",
+    )
     flight_path_angle_deg: float = Field(
         ..., gt=-90, lt=90, description="Flight path angle, deg, (-90, 90); negative descends."
     )
     heading_deg: float = Field(
         ..., ge=-360, le=360, description="Heading angle from north, clockwise, deg."
     )
-    time_s: float = Field(0.0, description="Time at the initial state, s.")
+    time_s: float = Field(
+        0.0,
+        ge=-bounds.TIME_MAX_S,
+        le=bounds.TIME_MAX_S,
+        description="Time at the initial state, s.",
+    )
     bank_deg: float | None = Field(
         None, ge=-180, le=180, description="Initial bank angle, deg, when bank is a state."
     )
@@ -45,7 +61,10 @@ class FreeFinalTime(StrictModel):
 
     kind: Literal["free"] = Field("free", description="Final-time kind.")
     max_s: float | None = Field(
-        None, gt=0, description="Latest admissible final time, s; none means unbounded."
+        None,
+        gt=0,
+        le=bounds.TIME_MAX_S,
+        description="Latest admissible final time, s; none means unbounded.",
     )
 
 
@@ -53,7 +72,12 @@ class FixedFinalTime(StrictModel):
     """The flight ends at the given time."""
 
     kind: Literal["fixed"] = Field("fixed", description="Final-time kind.")
-    value_s: float = Field(..., gt=0, description="Final time, s; exceeds the initial time.")
+    value_s: float = Field(
+        ...,
+        gt=0,
+        le=bounds.TIME_MAX_S,
+        description="Final time, s; exceeds the initial time.",
+    )
 
 
 FinalTime = Annotated[
@@ -73,10 +97,16 @@ class EnergyBounds(StrictModel):
     """
 
     initial: float | None = Field(
-        None, description="Nondimensional energy at the initial state; none = derived."
+        None,
+        ge=-bounds.ENERGY_MAX,
+        le=bounds.ENERGY_MAX,
+        description="Nondimensional energy at the initial state; none = derived.",
     )
     final: float | None = Field(
-        None, description="Nondimensional energy at the final state; none = derived."
+        None,
+        ge=-bounds.ENERGY_MAX,
+        le=bounds.ENERGY_MAX,
+        description="Nondimensional energy at the final state; none = derived.",
     )
 
     @model_validator(mode="after")

@@ -6,6 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.base import FieldProblem, StrictModel, raise_problems, untagged_errors
 
 
@@ -69,7 +70,10 @@ class SoftSpec(StrictModel):
     kind: Literal["soft"] = Field("soft", description="Spec kind: a penalized target.")
     value: float = Field(..., description="Target final value, in the unit of the field.")
     weight: float = Field(
-        ..., gt=0, description="Penalty weight on the miss (nondimensional), > 0."
+        ...,
+        gt=0,
+        le=bounds.WEIGHT_MAX,
+        description="Penalty weight on the miss (nondimensional), > 0.",
     )
 
     def target(self) -> float | None:
@@ -99,10 +103,10 @@ AnySpec = FixedSpec | RangeSpec | FreeSpec | SoftSpec
 
 # Closed admissible interval of every value a spec of each field may name.
 _DOMAINS: dict[str, tuple[float, float]] = {
-    "altitude_m": (0.0, float("inf")),
+    "altitude_m": (0.0, bounds.ALTITUDE_MAX_M),
     "longitude_deg": (-360.0, 360.0),
     "latitude_deg": (-90.0, 90.0),
-    "velocity_m_s": (0.0, float("inf")),
+    "velocity_m_s": (0.0, bounds.SPEED_MAX_M_S),
     "flight_path_angle_deg": (-90.0, 90.0),
     "heading_deg": (-360.0, 360.0),
 }

@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
+from app.schemas import bounds
 from app.schemas.aerodynamics import Aerodynamics
 from app.schemas.base import (
     FieldProblem,
@@ -30,13 +31,22 @@ class VelocityScheduleAngleOfAttack(StrictModel):
         40.0, gt=-90, lt=90, description="Angle of attack above the break speed, deg."
     )
     velocity_break_m_s: float = Field(
-        4570.0, gt=0, description="Speed below which the angle of attack decreases, m/s."
+        4570.0,
+        gt=0,
+        le=bounds.SPEED_MAX_M_S,
+        description="Speed below which the angle of attack decreases, m/s.",
     )
     slope_coefficient: float = Field(
-        0.20705, ge=0, description="Slope of the quadratic decrease, deg per (V/scale)^2."
+        0.20705,
+        ge=0,
+        le=bounds.AERO_COEFFICIENT_MAX,
+        description="Slope of the quadratic decrease, deg per (V/scale)^2.",
     )
     velocity_scale_m_s: float = Field(
-        340.0, gt=0, description="Speed normalizing the quadratic decrease, m/s."
+        340.0,
+        gt=0,
+        le=bounds.SPEED_MAX_M_S,
+        description="Speed normalizing the quadratic decrease, m/s.",
     )
 
 
@@ -44,14 +54,18 @@ class TableAngleOfAttack(StrictModel):
     """Angle of attack interpolated linearly in a table over speed."""
 
     mode: Literal["table"] = Field("table", description="Angle-of-attack law name.")
-    velocity_m_s: list[float] = Field(
+    velocity_m_s: list[Annotated[float, Field(ge=0, le=bounds.SPEED_MAX_M_S)]] = Field(
         ...,
         min_length=2,
         max_length=MAX_TABLE_POINTS,
+        fail_fast=True,
         description="Speed breakpoints, m/s, strictly increasing.",
     )
-    alpha_deg: list[float] = Field(
-        ..., description="Angle of attack at each speed breakpoint, deg; same length."
+    alpha_deg: list[Annotated[float, Field(gt=-90, lt=90)]] = Field(
+        ...,
+        max_length=MAX_TABLE_POINTS,
+        fail_fast=True,
+        description="Angle of attack at each speed breakpoint, deg; same length.",
     )
 
     @model_validator(mode="after")
@@ -92,7 +106,10 @@ class OptimizedAngleOfAttack(StrictModel):
         ..., gt=-90, lt=90, description="Upper bound of angle of attack, deg; > min_deg."
     )
     rate_max_deg_s: float | None = Field(
-        None, gt=0, description="Bound on |d alpha/dt|, deg/s; none means unbounded."
+        None,
+        gt=0,
+        le=bounds.ANGLE_RATE_MAX_DEG_S,
+        description="Bound on |d alpha/dt|, deg/s; none means unbounded.",
     )
     initial_deg: float | None = Field(
         None,
@@ -142,8 +159,20 @@ AngleOfAttack = Annotated[
 class Vehicle(StrictModel):
     """Mass and aerodynamic description of the entry vehicle."""
 
-    mass_kg: float = Field(..., gt=0, description="Vehicle mass, kg, > 0 (constant during entry).")
-    reference_area_m2: float = Field(..., gt=0, description="Aerodynamic reference area, m^2, > 0.")
+    mass_kg: Annotated[float, bounds.minimum(bounds.MASS_KG[0])] = Field(
+        ...,
+        gt=0,
+        le=bounds.MASS_KG[1],
+        description=f"Vehicle mass, kg, in [{bounds.MASS_KG[0]:g}, {bounds.MASS_KG[1]:g}] "
+        "(constant during entry).",
+    )
+    reference_area_m2: Annotated[float, bounds.minimum(bounds.REFERENCE_AREA_M2[0])] = Field(
+        ...,
+        gt=0,
+        le=bounds.REFERENCE_AREA_M2[1],
+        description="Aerodynamic reference area, m^2, in "
+        f"[{bounds.REFERENCE_AREA_M2[0]:g}, {bounds.REFERENCE_AREA_M2[1]:g}].",
+    )
     aerodynamics: Aerodynamics = Field(..., description="Lift and drag coefficient model.")
     angle_of_attack: AngleOfAttack = Field(
         ..., description="Angle-of-attack law: schedule, table, constant or optimized."

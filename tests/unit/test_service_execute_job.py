@@ -138,17 +138,22 @@ def test_solver_failure_keeps_reason_and_history(settings: Settings, database: D
 
 
 def test_exception_in_the_solver_fails_the_job_with_the_history_so_far(
-    settings: Settings, database: Database
+    settings: Settings, database: Database, caplog: pytest.LogCaptureFixture
 ) -> None:
     def boom(k: int) -> None:
         if k == 2:
-            raise RuntimeError("singular matrix")
+            raise RuntimeError("singular matrix at /srv/secret/path")
 
     job_id = _submit(database)
-    assert execute_job(job_id, settings=settings, solve=scripted(5, between=boom)) == "failed"
+    with caplog.at_level("ERROR", logger="worker.jobs"):
+        assert execute_job(job_id, settings=settings, solve=scripted(5, between=boom)) == "failed"
     job = _job(database, job_id)
     assert job.error_code == "internal_error"
-    assert "singular matrix" in (job.error_message or "")
+    message = job.error_message or ""
+    assert "singular matrix" not in message and "RuntimeError" not in message  # no internals
+    error_id = message.split("error id ")[1].split(";")[0]
+    logged = [r for r in caplog.records if error_id in r.getMessage()]
+    assert logged and "singular matrix" in str(logged[0].exc_info[1])  # the log has them
     assert len(job.history) == 2
     assert job.result is None
 
