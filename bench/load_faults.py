@@ -1,14 +1,25 @@
-"""Load with a fault: 200 small jobs from 4 concurrent clients while one of 2 workers is killed.
+"""Load with a fault: 200 small jobs from 4 concurrent clients while a worker, the API or the
+database is lost for a while.
 
 Starts its own API (api-keys mode, one key per client), two Celery workers and a throwaway
 PostgreSQL schema and Redis queue. Each client submits its share of the jobs and then polls the
-status of every job it owns until all are terminal, timing each status read. Once a few jobs
-have finished, worker 1 is killed with SIGKILL (its whole process group) and restarted. At the
-end the database must hold every accepted job in a terminal state, and the worker logs must show
-exactly one stored outcome per job finished by a worker (no duplicate solve reached storage).
+status of every job it owns until all are terminal, timing each status read; a request that
+fails during the fault is retried. Once a few jobs have finished, the fault strikes:
+
+- ``--fault worker``: worker 1 is killed with SIGKILL (its whole process group) and restarted;
+- ``--fault api``: the API is killed with SIGKILL in the middle of the submissions (jobs stored
+  but not yet sent are left behind) and restarted;
+- ``--fault database``: every database connection of the API and the workers goes through a TCP
+  forwarder, which is cut for ``--outage-s`` (running and queued jobs in flight) and restored.
+
+At the end the database must hold every accepted job (and every job stored whose answer was
+lost with the API) in a terminal state, the worker logs must show exactly one stored outcome per
+job finished by a worker, and no queued job may have waited unsent for longer than 30 s after
+the recovery (the outbox's ``dispatch_due_at``, sampled every half second).
 
     python -m bench.load_faults                       # 200 jobs, 4 clients, 2 workers
-    python -m bench.load_faults --jobs 40 --output load.json
+    python -m bench.load_faults --fault api --jobs 100
+    python -m bench.load_faults --fault database --outage-s 20 --output load.json
 """
 
 from __future__ import annotations
@@ -25,6 +36,7 @@ import tempfile
 import threading
 import time
 import uuid
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -33,8 +45,11 @@ import httpx
 
 from bench.service_overhead import ROOT, TERMINAL, _free_port, _Process
 from bench.stack_args import add_stack_arguments
+from bench.tcp_proxy import TcpProxy
 
 SECRET = "bench-only-8c1d4f2a6b3e9d7c5a1f0e2d4c6b8a9f"
+STRANDED_S = 30.0
+"""No queued job may wait unsent longer than this after the recovery."""
 STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
 
 
@@ -56,6 +71,7 @@ class Client(threading.Thread):
         self.submit_s: list[float] = []
         self.refused: dict[int, int] = {}
         self.final: dict[str, str] = {}
+        self.failed_requests = 0
         self.error: BaseException | None = None
 
     def run(self) -> None:
@@ -67,7 +83,12 @@ class Client(threading.Thread):
     def _run(self) -> None:
         while len(self.ids) < self.jobs:
             start = time.perf_counter()
-            response = self.http.post("/v1/jobs", json=self.body)
+            try:
+                response = self.http.post("/v1/jobs", json=self.body)
+            except httpx.TransportError:  # the API is down: not accepted, try again
+                self.failed_requests += 1
+                time.sleep(0.5)
+                continue
             self.submit_s.append(time.perf_counter() - start)
             if response.status_code == 202:
                 self.ids.append(response.json()["id"])
@@ -79,7 +100,17 @@ class Client(threading.Thread):
             still: list[str] = []
             for job_id in pending:
                 start = time.perf_counter()
-                response = self.http.get(f"/v1/jobs/{job_id}")
+                try:
+                    response = self.http.get(f"/v1/jobs/{job_id}")
+                except httpx.TransportError:
+                    self.failed_requests += 1
+                    still.append(job_id)
+                    time.sleep(0.5)
+                    continue
+                if response.status_code >= 500:  # the database is away: read again later
+                    self.failed_requests += 1
+                    still.append(job_id)
+                    continue
                 self.read_s.append(time.perf_counter() - start)
                 response.raise_for_status()
                 status = response.json()["status"]
@@ -130,10 +161,10 @@ def _create_key(env: dict[str, str], client: str) -> str:
     return out.stdout.strip()
 
 
-def _check_database(env: dict[str, str], ids: list[str]) -> dict[str, Any]:
+def _check_database(database_url: str, ids: list[str]) -> dict[str, Any]:
     import psycopg
 
-    with psycopg.connect(env["DATABASE_URL"]) as conn:
+    with psycopg.connect(database_url) as conn:
         rows = conn.execute(
             "SELECT id, status, attempts, result IS NOT NULL, error_code FROM jobs",
         ).fetchall()
@@ -157,19 +188,69 @@ def _check_database(env: dict[str, str], ids: list[str]) -> dict[str, Any]:
     }
 
 
+class UnsentMonitor(threading.Thread):
+    """Samples, from the recovery on, how long any queued job has been due but unsent."""
+
+    def __init__(self, database_url: str, since: datetime) -> None:
+        super().__init__(daemon=True)
+        self.url, self.since = database_url, since
+        self.max_unsent_s = 0.0
+        self.samples = 0
+        self._done = threading.Event()
+
+    def run(self) -> None:
+        import psycopg
+
+        with psycopg.connect(self.url, autocommit=True) as conn:
+            while not self._done.wait(0.5):
+                row = conn.execute(
+                    "SELECT max(extract(epoch FROM now() - greatest(dispatch_due_at, %s))) "
+                    "FROM jobs WHERE status = 'queued' AND dispatch_due_at IS NOT NULL",
+                    (self.since,),
+                ).fetchone()
+                self.samples += 1
+                if row is not None and row[0] is not None:
+                    self.max_unsent_s = max(self.max_unsent_s, float(row[0]))
+
+    def stop(self) -> None:
+        """Stop sampling."""
+        self._done.set()
+        self.join(timeout=5)
+
+
+def _through(proxy: TcpProxy, url: str) -> str:
+    from sqlalchemy import make_url
+
+    return make_url(url).set(host="127.0.0.1", port=proxy.port).render_as_string(False)
+
+
+def _start_api(env: dict[str, str], port: int, log: Path) -> _Process:
+    api = _Process(["serve", "--host", "127.0.0.1", "--port", str(port)], env, log)
+    api.wait_for("Application startup complete", 90)
+    return api
+
+
 def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
     """Run the scenario once and return the figures."""
+    from sqlalchemy import make_url
+
     env, schema = _env(args, logs)
+    direct_url = env["DATABASE_URL"]
+    proxy: TcpProxy | None = None
+    if args.fault == "database":
+        upstream = make_url(direct_url)
+        proxy = TcpProxy(upstream.host or "127.0.0.1", upstream.port or 5432)
+        proxy.start()
+        env["DATABASE_URL"] = _through(proxy, direct_url)
     processes: list[_Process] = []
     method = {"nodes": args.nodes, "max_iterations": args.max_iterations}
     body = {"scenario": args.scenario, "method": method}
+    monitor: UnsentMonitor | None = None
     try:
         keys = [_create_key(env, f"client-{i}") for i in range(args.clients)]
         port = _free_port()
-        api = _Process(["serve", "--host", "127.0.0.1", "--port", str(port)], env,
-                       logs / "api.log")  # fmt: skip
+        api = _start_api(env, port, logs / "api.log")
         processes.append(api)
-        api.wait_for("Application startup complete", 90)
         workers = []
         for index in range(2):
             worker = _Process(["worker", "--concurrency", "1"], env, logs / f"worker-{index}.log")
@@ -183,27 +264,49 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
         start = time.perf_counter()
         for c in clients:
             c.start()
-        killed_at = restarted_at = None
+        fault_at = recovered_at = None
         while any(c.is_alive() for c in clients):
             done = sum(len(c.final) for c in clients)
-            if killed_at is None and done >= args.kill_after:
-                os.killpg(workers[0].proc.pid, signal.SIGKILL)  # main process and pool child
-                workers[0].proc.wait()
-                killed_at = time.perf_counter() - start
-                time.sleep(args.restart_after_s)
-                replacement = _Process(["worker", "--concurrency", "1"], env,
-                                       logs / "worker-0-restarted.log")  # fmt: skip
-                processes.append(replacement)
-                replacement.wait_for(" ready.", 90)
-                restarted_at = time.perf_counter() - start
+            accepted_now = sum(len(c.ids) for c in clients)
+            due = (
+                accepted_now >= args.kill_after if args.fault == "api" else done >= args.kill_after
+            )
+            if fault_at is None and due:
+                fault_at = time.perf_counter() - start
+                if args.fault == "worker":
+                    os.killpg(workers[0].proc.pid, signal.SIGKILL)  # main process and pool child
+                    workers[0].proc.wait()
+                    time.sleep(args.restart_after_s)
+                    replacement = _Process(["worker", "--concurrency", "1"], env,
+                                           logs / "worker-0-restarted.log")  # fmt: skip
+                    processes.append(replacement)
+                    replacement.wait_for(" ready.", 90)
+                elif args.fault == "api":
+                    os.killpg(api.proc.pid, signal.SIGKILL)  # between commits and sends
+                    api.proc.wait()
+                    time.sleep(args.restart_after_s)
+                    api = _start_api(env, port, logs / "api-restarted.log")
+                    processes.append(api)
+                else:
+                    assert proxy is not None
+                    proxy.cut()
+                    time.sleep(args.outage_s)
+                    proxy.restore()
+                recovered_at = time.perf_counter() - start
+                monitor = UnsentMonitor(direct_url, datetime.now(UTC))
+                monitor.start()
             time.sleep(0.2)
         wall = time.perf_counter() - start
+        if monitor is not None:
+            monitor.stop()
         for c in clients:
             if c.error is not None:
                 raise RuntimeError(f"a client failed: {c.error!r}")
         ids = [job_id for c in clients for job_id in c.ids]
-        database = _check_database(env, ids)
-        worker_logs = "\n".join(p.log.read_text(errors="replace") for p in processes[1:])
+        database = _check_database(direct_url, ids)
+        worker_logs = "\n".join(
+            p.log.read_text(errors="replace") for p in processes if "worker" in p.log.name
+        )
         stored: dict[str, int] = {}
         for match in STORED_RE.finditer(worker_logs):
             stored[match.group(1)] = stored.get(match.group(1), 0) + 1
@@ -211,6 +314,7 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
         submits = [s for c in clients for s in c.submit_s]
         lost = set(database["worker_lost"])
         return {
+            "fault": args.fault,
             "job": body,
             "clients": args.clients,
             "accepted": len(ids),
@@ -225,8 +329,10 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
             "refused_submissions": {
                 str(k): sum(c.refused.get(k, 0) for c in clients) for k in (429, 503)
             },
-            "worker_killed_at_s": killed_at,
-            "worker_restarted_at_s": restarted_at,
+            "failed_requests": sum(c.failed_requests for c in clients),
+            "fault_at_s": fault_at,
+            "recovered_at_s": recovered_at,
+            "max_unsent_after_recovery_s": monitor.max_unsent_s if monitor else None,
             "wall_s": wall,
             "status_reads": len(reads),
             "status_read_p50_ms": 1e3 * statistics.median(reads),
@@ -237,6 +343,8 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
     finally:
         for process in reversed(processes):
             process.stop()
+        if proxy is not None:
+            proxy.cut()
         _cleanup(args, env, schema)
 
 
@@ -265,6 +373,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kill-after", type=int, default=20,
                         help="kill worker 1 once this many jobs are terminal")  # fmt: skip
     parser.add_argument("--restart-after-s", type=float, default=3.0)
+    parser.add_argument("--fault", choices=("worker", "api", "database"), default="worker",
+                        help="what is lost: a worker, the API, or the database")  # fmt: skip
+    parser.add_argument("--outage-s", type=float, default=20.0,
+                        help="how long the database is unreachable (--fault database)")  # fmt: skip
     parser.add_argument("--lease-s", type=float, default=10.0)
     add_stack_arguments(parser, redis_db=12)
     args = parser.parse_args(argv)
@@ -274,12 +386,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.output:
         args.output.write_text(json.dumps(report, indent=2) + "\n")
     db = report["database"]
+    unsent = report["max_unsent_after_recovery_s"]
     ok = (
         report["accepted"] == args.jobs == report["distinct_ids"]
-        and db["rows"] == args.jobs
+        and db["rows"] >= args.jobs  # more: stored, but the answer died with the API
         and not db["not_terminal"]
         and report["jobs_stored_twice_or_more"] == 0
         and db["succeeded_without_result"] == 0
+        and (unsent is None or unsent <= STRANDED_S)
     )
     print("PASS" if ok else "FAIL", f"- {report['accepted']} accepted, "
           f"{sum(db['statuses'].values())} terminal {db['statuses']}, "

@@ -24,6 +24,7 @@ from app.settings import normalize_database_url
 from app.storage import repository
 from app.storage.session import get_database
 from app.submission import resolve_submission
+from bench.tcp_proxy import TcpProxy
 from tests.integration.conftest import PgSchemas
 from tests.integration.harness import (
     SCENARIO,
@@ -33,7 +34,6 @@ from tests.integration.harness import (
     forget_queue,
     long_job,
 )
-from tests.integration.tcp_proxy import TcpProxy
 from tests.integration.test_faults import (
     FAULT_SETTINGS,
     SMALL,

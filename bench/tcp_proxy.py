@@ -1,5 +1,5 @@
-"""A loopback TCP forwarder a test can cut and restore: a database outage without stopping the
-machine's database server (which other tests share).
+"""A loopback TCP forwarder that can be cut and restored: a database outage for a benchmark or a
+test without stopping the database server (which others may share).
 
 Connections to ``127.0.0.1:port`` are forwarded to the upstream address. :meth:`cut` closes the
 listener and every open connection (clients see resets and refused connects, as with a crashed
@@ -13,7 +13,7 @@ import socket
 import struct
 import threading
 
-from tests.integration.harness import free_port
+from bench.service_overhead import _free_port
 
 
 class TcpProxy:
@@ -21,7 +21,7 @@ class TcpProxy:
 
     def __init__(self, upstream_host: str, upstream_port: int) -> None:
         self.upstream = (upstream_host, upstream_port)
-        self.port = free_port()
+        self.port = _free_port()
         self._lock = threading.Lock()
         self._listener: socket.socket | None = None
         self._open: set[socket.socket] = set()
