@@ -74,29 +74,27 @@ def get_principal(
 PrincipalDep = Annotated[Principal, Depends(get_principal)]
 
 
-def _limit(service: ServiceState, principal: Principal, kind: str, limit: int) -> None:
-    retry_after = service.rate_limiter.hit(
-        f"{kind}:{principal.rate_bucket}", limit, service.settings.rate_window_s
-    )
-    if retry_after is not None:
-        raise ApiError(
-            429,
-            "rate_limited",
-            f"too many {kind} requests: at most {limit} per {service.settings.rate_window_s:g} s",
-            headers={"Retry-After": str(int(retry_after))},
-        )
+def _limit(service: ServiceState, principal: Principal, kind: str) -> str:
+    """Charge a read, or test a submission's rejected-submission window, against the caller's
+    client's and key's moving windows (429 with Retry-After when one is full); returns the
+    owner for the route: the client's name, carrying its quota for a submission (the submit
+    use case tests and uses the submit window itself, once it knows the request is no replay)."""
+    quota = service.rate_limiter.quota(service.settings, principal.client, principal.key_id)
+    refusal = quota.charge("read") if kind == "read" else quota.check("rejected")
+    if refusal is not None:
+        raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
+    return principal.client if kind == "read" else quota.submitter()
 
 
 def get_owner(service: ServiceDep, principal: PrincipalDep) -> str:
-    """The caller's client name, after counting one read against its rate limit."""
-    _limit(service, principal, "read", service.settings.rate_read_per_window)
-    return principal.client
+    """The caller's client name, after counting one read against its rate limits."""
+    return _limit(service, principal, "read")
 
 
 def get_submitter(service: ServiceDep, principal: PrincipalDep) -> str:
-    """The caller's client name, after counting one submission against its rate limit."""
-    _limit(service, principal, "submit", service.settings.rate_submit_per_window)
-    return principal.client
+    """The caller's client name with its quota, once its rejected-submission window admits
+    one more (a client refused too often is answered 429 before its body is looked at)."""
+    return _limit(service, principal, "submit")
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings_dep)]

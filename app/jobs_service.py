@@ -12,7 +12,9 @@ from sqlalchemy.exc import IntegrityError
 from app.caps import check_server_caps
 from app.dispatch import Dispatcher
 from app.errors import ApiError, not_found
+from app.ratelimit import Quota, Submitter
 from app.settings import Settings
+from app.storage import quota as quota_store
 from app.storage import repository
 from app.storage.models import ACTIVE_STATUSES, Job, JobStatus, utcnow
 from app.storage.session import Database
@@ -100,6 +102,14 @@ def _replay(existing: Job, fingerprint: str, key: str) -> Job:
     return existing
 
 
+def _replayed(job: Job, settings: Settings, quota: Quota | None) -> JobView:
+    """The view of a replayed job; a replay costs a read, not a submission."""
+    refusal = quota.charge("read") if quota is not None else None
+    if refusal is not None:
+        raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
+    return job_view(job, settings)
+
+
 def submit_job(
     *,
     database: Database,
@@ -109,28 +119,52 @@ def submit_job(
     body: Any,
     idempotency_key: str | None,
 ) -> tuple[JobView, bool]:
-    """Validate, store and dispatch a job; returns its view and whether it was a replay."""
-    key = _check_key(idempotency_key)
-    fingerprint = request_fingerprint(body) if key else None
-    if key and fingerprint:
-        with database.reader() as session:
-            existing = repository.find_by_idempotency_key(session, owner, key)
-            if existing is not None:
-                return job_view(_replay(existing, fingerprint, key), settings), True
+    """Validate, store and dispatch a job; returns its view and whether it was a replay.
 
+    ``owner`` is the client's name; when it is a :class:`Submitter` (as the route gives it),
+    a replay costs one read, a new submission needs room in the submit window (429 before
+    validation otherwise) and uses one unit of it only when accepted, and a refusal with a
+    4xx uses one unit of the rejected-submission window instead.
+    """
+    quota = owner.quota if isinstance(owner, Submitter) else None
+    owner = str(owner)
+    try:
+        key = _check_key(idempotency_key)
+        fingerprint = request_fingerprint(body) if key else None
+        if key and fingerprint:
+            with database.reader() as session:
+                existing = repository.find_by_idempotency_key(session, owner, key)
+            if existing is not None:
+                return _replayed(_replay(existing, fingerprint, key), settings, quota), True
+    except ApiError as exc:
+        if quota is not None and exc.status == 422:  # a bad key, or a key reused: rejected
+            quota.note_rejected()
+        raise
+    refusal = quota.check("submit") if quota is not None else None
+    if refusal is not None:  # the cheap answer: no validation, no unit used
+        raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
+    try:
+        return _submit(database, dispatcher, settings, owner, body, key, fingerprint, quota)
+    except ApiError as exc:
+        if quota is not None and 400 <= exc.status < 500:
+            quota.note_rejected()
+        raise
+
+
+def _submit(
+    database: Database,
+    dispatcher: Dispatcher,
+    settings: Settings,
+    owner: str,
+    body: Any,
+    key: str | None,
+    fingerprint: str | None,
+    quota: Quota | None,
+) -> tuple[JobView, bool]:
+    """:func:`submit_job` for a request that is no replay; every refusal is an ApiError."""
     submission = resolve_submission(body)
     check_server_caps(submission.problem, settings)
     check_method_support(submission)
-    with database.reader() as session:
-        active = repository.count_active(session, owner)
-    if active >= settings.max_active_jobs:
-        raise ApiError(
-            429,
-            "too_many_active_jobs",
-            f"client has {active} queued or running jobs; the cap is {settings.max_active_jobs} "
-            "(TRAJOPT_MAX_ACTIVE_JOBS)",
-            headers={"Retry-After": str(ACTIVE_CAP_RETRY_AFTER_S)},
-        )
     new = repository.NewJob(
         owner=owner,
         method=submission.method,
@@ -141,6 +175,25 @@ def submit_job(
     )
     try:
         with database.session() as session:
+            # The client's submissions pass one at a time from here to the commit, so the
+            # count is exact: the cap cannot be overshot by submissions in flight.
+            active = quota_store.locked_active_count(session, owner)
+            if key and fingerprint:  # the same key may have been stored since the look-up
+                existing = repository.find_by_idempotency_key(session, owner, key)
+                if existing is not None:
+                    replayed = _replay(existing, fingerprint, key)
+                    return _replayed(replayed, settings, quota), True
+            if active >= settings.max_active_jobs:
+                raise ApiError(
+                    429,
+                    "too_many_active_jobs",
+                    f"client has {active} queued or running jobs; the cap is "
+                    f"{settings.max_active_jobs} (TRAJOPT_MAX_ACTIVE_JOBS)",
+                    headers={"Retry-After": str(ACTIVE_CAP_RETRY_AFTER_S)},
+                )
+            refusal = quota.charge("submit") if quota is not None else None
+            if refusal is not None:  # lost the race for the last units of the window
+                raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
             job = repository.create_job(session, new)
     except IntegrityError:
         if not (key and fingerprint):
@@ -149,7 +202,7 @@ def submit_job(
             existing = repository.find_by_idempotency_key(session, owner, key)
         if existing is None:
             raise
-        return job_view(_replay(existing, fingerprint, key), settings), True
+        return _replayed(_replay(existing, fingerprint, key), settings, quota), True
 
     try:
         dispatcher.submit(job.id, job_time_limits(submission.document, settings))

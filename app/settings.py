@@ -136,6 +136,19 @@ class Settings(BaseSettings):
         default="", description="Comma-separated browser origins allowed by CORS; empty: none."
     )
     max_body_bytes: int = Field(default=1_048_576, ge=1024)
+    rate_rejected_per_window: int = Field(
+        default=30,
+        ge=0,
+        description="Submissions refused with a 4xx (invalid, over a cap) a client may send per "
+        "rate window; when used up, its submissions get 429 before validation. 0 disables (as "
+        "does a submit limit of 0).",
+    )
+    rate_key_share: float = Field(
+        default=1.0,
+        gt=0,
+        le=1,
+        description="Share of each per-client rate limit one API key may use alone (1: all).",
+    )
     rate_window_s: float = Field(default=60.0, gt=0)
     rate_submit_per_window: int = Field(default=60, ge=0, description="0 disables the limit.")
     rate_read_per_window: int = Field(default=1200, ge=0, description="0 disables the limit.")

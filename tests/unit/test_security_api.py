@@ -161,20 +161,61 @@ def test_body_size_limit_counts_bytes_not_the_header(make_clients: Any) -> None:
     assert c.submit(c.a)  # a small body still passes through the limit intact
 
 
-def test_submission_and_read_rate_limits_per_key(make_clients: Any) -> None:
+def test_submission_and_read_rate_limits_per_client(make_clients: Any) -> None:
     c = make_clients(rate_submit_per_window=2, rate_read_per_window=3, rate_window_s=3600)
+    a2 = {"X-API-Key": create_key(c.database, c.settings, "alpha")[1]}
     c.submit(c.a)
-    c.submit(c.a)
-    response = c.http.post("/v1/jobs", json=small_job(), headers=c.a)
-    assert_error(response, 429, "rate_limited")
-    assert 1 <= int(response.headers["retry-after"]) <= 3600
-    c.submit(c.b)  # another key has its own budget
-    for _ in range(3):
-        assert c.http.get("/v1/jobs", headers=c.a).status_code == 200
-    response = c.http.get("/v1/jobs", headers=c.a)
+    c.submit(a2)  # the client's two keys share its budget: no key gets a budget of its own
+    for headers in (c.a, a2):
+        response = c.http.post("/v1/jobs", json=small_job(), headers=headers)
+        error = assert_error(response, 429, "rate_limited")
+        assert error["message"] == "too many submit requests: at most 2 per 3600 s"
+        assert 3599 <= int(response.headers["retry-after"]) <= 3600  # when the oldest expires
+    c.submit(c.b)  # another client has its own budget
+    for headers in (c.a, a2, c.a):
+        assert c.http.get("/v1/jobs", headers=headers).status_code == 200
+    response = c.http.get("/v1/jobs", headers=a2)
     assert_error(response, 429, "rate_limited")
     assert int(response.headers["retry-after"]) >= 1
     assert c.http.get("/v1/jobs", headers=c.b).status_code == 200
+
+
+def test_a_key_may_use_only_its_share_of_the_client_limit(make_clients: Any) -> None:
+    c = make_clients(rate_submit_per_window=4, rate_key_share=0.5, rate_window_s=3600)
+    a2, a3 = ({"X-API-Key": create_key(c.database, c.settings, "alpha")[1]} for _ in range(2))
+    for headers in (c.a, c.a, a2, a2):
+        c.submit(headers)
+    error = assert_error(
+        c.http.post("/v1/jobs", json=small_job(), headers=c.a), 429, "rate_limited"
+    )
+    assert error["message"] == "too many submit requests with this API key: at most 2 per 3600 s"
+    error = assert_error(c.http.post("/v1/jobs", json=small_job(), headers=a3), 429, "rate_limited")
+    assert error["message"] == "too many submit requests: at most 4 per 3600 s"  # the client's
+
+
+def test_refused_submissions_use_the_rejected_quota_not_the_submit_quota(
+    make_clients: Any,
+) -> None:
+    c = make_clients(rate_submit_per_window=2, rate_rejected_per_window=3, rate_window_s=3600)
+    invalid = {**small_job(), "nodes": 20}
+    for _ in range(2):
+        assert_error(c.http.post("/v1/jobs", json=invalid, headers=c.a), 422, "invalid_request")
+    replayed = {**c.a, "Idempotency-Key": "nightly-1"}
+    first = c.http.post("/v1/jobs", json=small_job(), headers=replayed)
+    assert first.status_code == 202, first.text
+    c.submit(c.a)  # the two invalid bodies used none of the submit quota
+    assert_error(c.http.post("/v1/jobs", json=small_job(), headers=c.a), 429, "rate_limited")
+    again = c.http.post("/v1/jobs", json=small_job(), headers=replayed)  # a replay costs a read
+    assert (again.status_code, again.json()["id"]) == (202, first.json()["id"])
+
+    for _ in range(3):
+        assert_error(c.http.post("/v1/jobs", json=invalid, headers=c.b), 422, "invalid_request")
+    for body in (invalid, small_job()):  # refused before validation until the window moves
+        response = c.http.post("/v1/jobs", json=body, headers=c.b)
+        error = assert_error(response, 429, "rate_limited")
+        assert error["message"] == "too many rejected submissions: at most 3 per 3600 s"
+        assert int(response.headers["retry-after"]) >= 3599
+    assert c.http.get("/v1/jobs", headers=c.b).json()["total"] == 0
 
 
 def test_cap_on_queued_and_running_jobs_per_client(make_clients: Any) -> None:
