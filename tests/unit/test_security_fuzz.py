@@ -9,6 +9,7 @@ scripted solve (every other one is left queued), so chains meet queued and finis
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,8 @@ import pytest
 schemathesis = pytest.importorskip("schemathesis")
 
 from fastapi.testclient import TestClient  # noqa: E402
-from hypothesis import HealthCheck, settings  # noqa: E402
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 from schemathesis import checks as st_checks  # noqa: E402
 
 from app.auth import create_key  # noqa: E402
@@ -32,6 +34,8 @@ from worker.limits import TimeLimits  # noqa: E402
 from worker.solver.result import validated  # noqa: E402
 
 pytestmark = pytest.mark.slow
+
+SCENARIO = "rlv-min-heat-load"
 
 MAX_EXAMPLES = 40
 """Generated requests per operation: bounds the run to about a minute on two cores."""
@@ -58,9 +62,13 @@ class InstantDispatcher(RecordingDispatcher):
             execute_job(job_id, settings=self.settings, solve=contract_solve)
 
 
-def contract_solve(problem: Any, *, on_iteration: Any, should_stop: Any) -> dict[str, Any]:
+def contract_solve(
+    problem: Any, *, on_iteration: Any, should_stop: Any, on_phase: Any = None
+) -> dict[str, Any]:
     """:func:`scripted`'s solve, its result made a valid ``ResultDocument`` (it is documented)."""
-    result = scripted(2)(problem, on_iteration=on_iteration, should_stop=should_stop)
+    result = scripted(2)(
+        problem, on_iteration=on_iteration, should_stop=should_stop, on_phase=on_phase
+    )
     name = str(problem.method.name)
     objective = {"name": "min_heat_load", "value": result.pop("objective", None), "units": "J/m^2"}
     return validated({**result, "method": name, "objective": objective})
@@ -142,3 +150,74 @@ def test_submit_then_poll_chains(running: App) -> None:
         database=None,
     )
     Chains.TestCase().runTest()
+
+
+# --- hostile input classes the OpenAPI document does not describe -----------------------------
+
+_TEXT = st.text(alphabet=st.characters(codec=None, categories=None), max_size=12)
+"""Any code points, NUL and lone surrogates included."""
+
+
+def _hostile_body(draw: Any) -> tuple[str, dict[str, str], bool]:
+    """A JSON body (as text) of one class, the headers to send it with, and whether it is
+    hostile (text without NUL or surrogates is an ordinary string)."""
+    kind = draw(st.sampled_from(["text", "nan", "deep", "wide"]))
+    headers = {"Content-Type": "application/json"}
+    if kind == "text":
+        where = draw(st.sampled_from(["name", "description", "key", "scenario"]))
+        value = draw(_TEXT)
+        if where == "key":
+            body: Any = {"scenario": SCENARIO, "overrides": {value: 1}}
+        elif where == "scenario":
+            body = {"scenario": value}
+        else:
+            body = {"scenario": SCENARIO, "overrides": {where: value}}
+        hostile = where == "scenario" or any(
+            c == "\x00" or "\ud800" <= c <= "\udfff" for c in value
+        )
+        return json.dumps(body), headers, hostile
+    if kind == "nan":
+        token = draw(st.sampled_from(["NaN", "Infinity", "-Infinity", "1e999", "-1e400"]))
+        field = draw(st.sampled_from(["mass_kg", "reference_area_m2"]))
+        headers["Idempotency-Key"] = f"fuzz-{draw(st.integers(0, 10**9))}"
+        overrides = f'{{"vehicle": {{"{field}": {token}}}}}'
+        return f'{{"scenario": "{SCENARIO}", "overrides": {overrides}}}', headers, True
+    if kind == "wide":
+        nested = "[" + ",".join(["1"] * draw(st.integers(500, 200_000))) + "]"
+    else:
+        depth = draw(st.integers(10, 10_000))
+        opener, closer = draw(st.sampled_from([("[", "]"), ('{"a": ', "}")]))
+        nested = opener * depth + "1" + closer * depth
+    where = draw(st.sampled_from(["overrides", "method"]))
+    return f'{{"scenario": "{SCENARIO}", "{where}": {{"x": {nested}}}}}', headers, True
+
+
+@settings(
+    max_examples=MAX_EXAMPLES,
+    deadline=None,
+    suppress_health_check=list(HealthCheck),
+    derandomize=True,
+    database=None,
+)
+@given(data=st.data())
+def test_hostile_bodies_and_job_ids_are_4xx_naming_the_field(running: App, data: Any) -> None:
+    """NUL and lone surrogates anywhere, non-finite numbers with an Idempotency-Key, nesting 10
+    to 10 000 levels deep, huge arrays, and job ids with NUL or bad UTF-8: each a 4xx in the
+    common error shape, a 422 naming its field."""
+    text, headers, hostile = _hostile_body(data.draw)
+    path = data.draw(st.sampled_from(["/v1/jobs", "/v1/problems/validate"]))
+    response = running.client.post(
+        path, content=text.encode("utf-8", "surrogatepass"), headers={**running.headers, **headers}
+    )
+    if not hostile:  # ordinary text: stored and answered like any other
+        assert response.status_code in (200, 202, 422), response.text[:300]
+        return
+    assert 400 <= response.status_code < 500, (text[:200], response.text[:300])
+    error = response.json()["error"]
+    if response.status_code == 422:
+        assert error["field"] is not None and error["issues"], error
+    ident = data.draw(st.sampled_from(["%00", "a%00", "%ED%A0%80", "%FF", "x" * 3000]))
+    suffix = data.draw(st.sampled_from(["", "/result", "/history", "/events"]))
+    response = running.client.get(f"/v1/jobs/{ident}{suffix}", headers=running.headers)
+    assert response.status_code == 404, response.text[:300]
+    assert response.json()["error"]["code"] == "job_not_found"
