@@ -11,6 +11,7 @@ from sqlalchemy.exc import IntegrityError
 
 from app.caps import check_server_caps
 from app.dispatch import Dispatcher
+from app.dispatch.fair import fair_priority
 from app.errors import ApiError, not_found
 from app.ratelimit import Quota, Submitter
 from app.settings import Settings
@@ -205,7 +206,8 @@ def _submit(
         return _replayed(_replay(existing, fingerprint, key), settings, quota), True
 
     try:
-        dispatcher.submit(job.id, job_time_limits(submission.document, settings))
+        limits = job_time_limits(submission.document, settings)
+        dispatcher.submit(job.id, limits, fair_priority(database, job.id))
     except Exception as exc:
         log.warning(
             "job %s of client %s could not be queued: %s: %s",

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 
 from app.dispatch import Dispatcher
+from app.dispatch.fair import fair_priority
 from app.settings import Settings
 from app.storage import repository
 from app.storage.models import JobStatus, utcnow
@@ -134,7 +135,8 @@ def relay_once(
             row = repository.get_job(session, job_id)
         if row is None or row.status != JobStatus.QUEUED.value:
             continue
-        if not _send(dispatcher, job_id, job_time_limits(row.problem, settings)):
+        limits = job_time_limits(row.problem, settings)
+        if not _send(dispatcher, job_id, limits, fair_priority(database, job_id)):
             continue
         with database.session() as session:
             repository.mark_dispatched(session, job_id)
@@ -144,9 +146,9 @@ def relay_once(
     return sent
 
 
-def _send(dispatcher: Dispatcher, job_id: str, limits: TimeLimits) -> bool:
+def _send(dispatcher: Dispatcher, job_id: str, limits: TimeLimits, priority: int) -> bool:
     try:
-        dispatcher.submit(job_id, limits)
+        dispatcher.submit(job_id, limits, priority)
     except Exception as exc:  # stays queued; the next sweep tries again
         log.warning("job %s: could not be sent now: %s: %s", job_id, type(exc).__name__, exc)
         return False

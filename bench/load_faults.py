@@ -46,6 +46,7 @@ import httpx
 from bench.service_overhead import ROOT, TERMINAL, _free_port, _Process
 from bench.stack_args import add_stack_arguments
 from bench.tcp_proxy import TcpProxy
+from worker.celery_app import priority_lists
 
 SECRET = "bench-only-8c1d4f2a6b3e9d7c5a1f0e2d4c6b8a9f"
 STRANDED_S = 30.0
@@ -356,7 +357,8 @@ def _cleanup(args: argparse.Namespace, env: dict[str, str], schema: str) -> None
         conn.execute(f'DROP SCHEMA IF EXISTS "{schema}" CASCADE')
     queue = env["TRAJOPT_QUEUE_NAME"]
     client = redis.Redis.from_url(args.redis_url)
-    client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+    bindings = (f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+    client.delete(*priority_lists(queue), *bindings)
     for key in client.scan_iter(f"trajopt:rate:{queue}:*"):
         client.delete(key)
     client.close()

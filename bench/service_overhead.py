@@ -35,6 +35,7 @@ from urllib.parse import quote
 import httpx
 
 from bench.stack_args import add_stack_arguments
+from worker.celery_app import priority_lists
 
 ROOT = Path(__file__).resolve().parents[1]
 TERMINAL = {"succeeded", "failed", "cancelled", "timed_out"}
@@ -133,7 +134,8 @@ def _stack(args: argparse.Namespace, workers: int, logs: Path) -> Iterator[str]:
                 conn.execute(f'DROP SCHEMA IF EXISTS "{schema}" CASCADE')
             queue = env["TRAJOPT_QUEUE_NAME"]
             client = redis.Redis.from_url(args.redis_url)
-            client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+            bindings = (f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+            client.delete(*priority_lists(queue), *bindings)
             if client.keys("*") == [b"_kombu.binding_deadlines"]:
                 client.delete("_kombu.binding_deadlines")
             client.close()

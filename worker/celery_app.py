@@ -14,6 +14,14 @@ from app.settings import Settings, get_settings
 from worker.limits import check_visibility_timeout
 
 TASK_NAME = "trajopt.solve_job"
+PRIORITY_LEVELS = 10
+"""Message priorities 0 (first) to 9: Redis keeps one list per level, ``queue`` for 0 and
+``queue:N`` for N, and workers pop the lowest non-empty level first."""
+
+
+def priority_lists(queue: str) -> list[str]:
+    """The Redis lists holding ``queue``'s messages, highest priority first."""
+    return [queue, *(f"{queue}:{level}" for level in range(1, PRIORITY_LEVELS))]
 
 
 def celery_config(settings: Settings) -> dict[str, Any]:
@@ -22,7 +30,13 @@ def celery_config(settings: Settings) -> dict[str, Any]:
     return {
         "broker_url": settings.broker_url or "memory://",
         "broker_connection_retry_on_startup": True,
-        "broker_transport_options": {"visibility_timeout": int(settings.visibility_timeout_s)},
+        "broker_transport_options": {
+            "visibility_timeout": int(settings.visibility_timeout_s),
+            "priority_steps": list(range(PRIORITY_LEVELS)),
+            "sep": ":",
+            "queue_order_strategy": "priority",
+        },
+        "task_default_priority": 0,
         "task_serializer": "json",
         "accept_content": ["json"],
         "result_serializer": "json",

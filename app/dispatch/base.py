@@ -16,8 +16,9 @@ class Dispatcher(Protocol):
     def start(self) -> None:
         """Prepare connections or processes (called once at application start-up)."""
 
-    def submit(self, job_id: str, limits: TimeLimits) -> None:
-        """Queue ``job_id``; raises when the job could not be handed over."""
+    def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
+        """Queue ``job_id`` at ``priority`` (0 first, see ``app.dispatch.fair``); raises when the
+        job could not be handed over."""
 
     def ping(self) -> str | None:
         """``None`` if the queue is reachable, else a short reason."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import redis
 
 from app.settings import Settings
-from worker.celery_app import TASK_NAME, create_celery
+from worker.celery_app import TASK_NAME, create_celery, priority_lists
 from worker.limits import TimeLimits
 
 
@@ -26,8 +26,9 @@ class CeleryDispatcher:
     def start(self) -> None:
         """Nothing to prepare: connections open on first use."""
 
-    def submit(self, job_id: str, limits: TimeLimits) -> None:
-        """Publish the job with its soft and hard time limits (the job id is the task id)."""
+    def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
+        """Publish the job with its soft and hard time limits (the job id is the task id) on
+        the priority list of ``priority``."""
         self._celery.send_task(
             TASK_NAME,
             args=[job_id],
@@ -35,6 +36,7 @@ class CeleryDispatcher:
             queue=self._settings.queue_name,
             soft_time_limit=limits.soft_s,
             time_limit=limits.hard_s,
+            priority=priority,
         )
 
     def ping(self) -> str | None:
@@ -46,9 +48,12 @@ class CeleryDispatcher:
         return None
 
     def queue_depth(self) -> int | None:
-        """Messages waiting in the Redis list of the queue (not counting reserved ones)."""
+        """Messages waiting in the Redis lists of the queue's priorities (not reserved ones)."""
         try:
-            return int(self._redis.llen(self._settings.queue_name))
+            with self._redis.pipeline() as pipe:
+                for name in priority_lists(self._settings.queue_name):
+                    pipe.llen(name)
+                return sum(int(n) for n in pipe.execute())
         except redis.RedisError:
             return None
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 import contextlib
 import functools
 import gc
+import heapq
+import itertools
 import logging
 import multiprocessing
 import os
@@ -24,6 +26,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
+from app.dispatch.fair import fair_priority
 from app.settings import Settings
 from app.storage import repository
 from app.storage.models import JobStatus
@@ -105,6 +108,9 @@ class LocalDispatcher:
         self._lock = threading.Lock()
         self._executor: ProcessPoolExecutor | None = None
         self._pending: dict[str, Future[str]] = {}
+        self._waiting: list[tuple[int, int, str]] = []
+        """Jobs not yet handed to the pool: a heap of (priority, arrival, job id)."""
+        self._arrivals = itertools.count()
         self._warming: list[Future[float]] = []
         self._closed = False
 
@@ -149,22 +155,35 @@ class LocalDispatcher:
             log.info("%d interrupted job(s) put back in the queue", len(released))
         for job_id in job_ids:
             log.info("dispatching unfinished job %s", job_id)
-            self.submit(job_id, TimeLimits(0, 0, 0))
+            self.submit(job_id, TimeLimits(0, 0, 0), fair_priority(database, job_id))
 
-    def submit(self, job_id: str, limits: TimeLimits) -> None:
-        """Queue the job in the pool (limits are applied inside ``execute_job``); while the pool
-        still loads the solver, the queued job's progress says so (phase ``compiling``)."""
+    def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
+        """Queue the job (limits are applied inside ``execute_job``): it goes to the pool when
+        a process is free, lowest ``priority`` first, then oldest. While the pool still loads
+        the solver, the queued job's progress says so (phase ``compiling``)."""
         with self._lock:
             if self._executor is None or self._closed:
                 raise RuntimeError("the local job pool is not running")
-            future = self._executor.submit(_run_job, job_id, self._settings)
-            self._pending[job_id] = future
+            heapq.heappush(self._waiting, (priority, next(self._arrivals), job_id))
             warming = not any(f.done() for f in self._warming)
-        future.add_done_callback(functools.partial(self._done, job_id))
+        self._feed()
         if warming:
             database = get_database(self._settings.effective_database_url)
             with database.session() as session:
                 repository.mark_queued_progress(session, job_id, {"phase": "compiling"})
+
+    def _feed(self) -> None:
+        """Hand waiting jobs to the pool while it has a free process."""
+        while True:
+            with self._lock:
+                if self._executor is None or self._closed or not self._waiting:
+                    return
+                if len(self._pending) >= self._settings.local_workers:
+                    return
+                _, _, job_id = heapq.heappop(self._waiting)
+                future = self._executor.submit(_run_job, job_id, self._settings)
+                self._pending[job_id] = future
+            future.add_done_callback(functools.partial(self._done, job_id))
 
     def _done(self, job_id: str, future: Future[str]) -> None:
         with self._lock:
@@ -172,6 +191,7 @@ class LocalDispatcher:
                 del self._pending[job_id]
         if future.cancelled():
             return
+        self._feed()
         if self.on_done is not None:
             self.on_done(job_id)
         exc = future.exception()
@@ -204,9 +224,10 @@ class LocalDispatcher:
         return None
 
     def queue_depth(self) -> int | None:
-        """Jobs handed to the pool that have not started yet."""
+        """Jobs waiting for a process of the pool."""
         with self._lock:
-            return sum(1 for f in self._pending.values() if not f.running() and not f.done())
+            handed = sum(1 for f in self._pending.values() if not f.running() and not f.done())
+            return len(self._waiting) + handed
 
     def shutdown(self) -> None:
         """Stop the pool's processes, then make the leases of the jobs they ran lapse at once:

@@ -483,6 +483,25 @@ def count_active(session: Session, owner: str) -> int:
     return int(session.execute(stmt).scalar_one())
 
 
+def dispatch_rank(session: Session, job_id: str) -> int:
+    """How many of the job's client's jobs, queued or running, are older than it (0 if none or
+    if the job is gone): its fair-share rank."""
+    job = session.execute(select(Job.owner, Job.created_at).where(Job.id == job_id)).one_or_none()
+    if job is None:
+        return 0
+    owner, created_at = job
+    ahead = session.execute(
+        select(func.count())
+        .select_from(Job)
+        .where(
+            Job.owner == owner,
+            Job.status.in_(list(ACTIVE_STATUSES)),
+            or_(Job.created_at < created_at, and_(Job.created_at == created_at, Job.id < job_id)),
+        )
+    ).scalar_one()
+    return int(ahead)
+
+
 def mark_dispatched(session: Session, job_id: str) -> bool:
     """Record that a queued job's message was handed to the queue (its outbox entry is done)."""
     stmt = (

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from datetime import datetime
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -88,6 +89,21 @@ def cancel_during_verification(client: ServiceClient, scenario: str) -> None:
     assert len(result["history"]) == 3
 
 
+def assert_fair_share(first: ServiceClient, second: ServiceClient, scenario: str) -> None:
+    """With one worker process busy on ``first``'s backlog of four jobs, ``second``'s single job
+    starts before ``first``'s third: clients get fair shares, not first come, first served
+    (which would start it after all four)."""
+    backlog = [first.submit({"scenario": scenario})["id"] for _ in range(4)]
+    first.wait_for(backlog[0], lambda j: j["status"] == "running", 120, "the first job running")
+    small = {"scenario": scenario, "method": {"nodes": 41, "max_iterations": 8}}
+    late = second.submit(small)["id"]
+    done = second.wait_finished(late, timeout=180)
+    finished = [first.wait_finished(job_id, timeout=180) for job_id in backlog]
+    started = [datetime.fromisoformat(j["started_at"]) for j in finished]
+    late_start = datetime.fromisoformat(done["started_at"])
+    assert started[0] < late_start < started[2], (done, finished)  # no pre-emption either
+
+
 def free_port() -> int:
     """A TCP port on the loopback interface that nothing listens on right now."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
@@ -107,10 +123,13 @@ def require(service: str, reason: str | None) -> None:
 
 
 def forget_queue(redis_url: str, queue: str) -> None:
-    """Delete a Celery queue's Redis list and the binding keys kombu made for it."""
+    """Delete a Celery queue's Redis lists (one per priority) and kombu's binding keys."""
+    from worker.celery_app import priority_lists
+
     client = redis.Redis.from_url(redis_url)
     try:
-        client.delete(queue, f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+        bindings = (f"_kombu.binding.{queue}", f"_kombu.binding_permanent.{queue}")
+        client.delete(*priority_lists(queue), *bindings)
         if client.keys("*") == [b"_kombu.binding_deadlines"]:  # only kombu's bookkeeping left
             client.delete("_kombu.binding_deadlines")
     finally:

@@ -20,7 +20,9 @@ from tests.integration.harness import (
     ApiServer,
     ServiceClient,
     ServiceProcess,
+    assert_fair_share,
     cancel_during_verification,
+    create_api_key,
     long_job,
 )
 
@@ -125,6 +127,16 @@ def test_cancel_a_queued_and_a_running_job(client: ServiceClient, scenario: str)
 
 def test_cancel_during_the_verification_stops_it(client: ServiceClient, scenario: str) -> None:
     cancel_during_verification(client, scenario)
+
+
+def test_clients_get_fair_shares_of_the_workers(
+    client: ServiceClient, api: ApiServer, stack_env: dict[str, str], scenario: str
+) -> None:
+    other = ServiceClient(api.base_url, create_api_key(stack_env, "fair-share"))
+    try:
+        assert_fair_share(client, other, scenario)
+    finally:
+        other.close()
 
 
 def test_own_time_limit_ends_timed_out_with_history(client: ServiceClient, scenario: str) -> None:

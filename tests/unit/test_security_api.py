@@ -28,7 +28,7 @@ SECRET = "0123456789abcdef0123456789abcdef-test-only"
 class FailingDispatcher(RecordingDispatcher):
     """A queue that is down."""
 
-    def submit(self, job_id: str, limits: Any) -> None:
+    def submit(self, job_id: str, limits: Any, priority: int = 0) -> None:
         raise ConnectionError("Error 111 connecting to 127.0.0.1:1. Connection refused.")
 
 

@@ -31,12 +31,14 @@ class RecordingDispatcher:
 
     def __init__(self) -> None:
         self.submitted: list[tuple[str, TimeLimits]] = []
+        self.priorities: list[int] = []
 
     def start(self) -> None:
         pass
 
-    def submit(self, job_id: str, limits: TimeLimits) -> None:
+    def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
         self.submitted.append((job_id, limits))
+        self.priorities.append(priority)
 
     def ping(self) -> str | None:
         return None
