@@ -57,6 +57,7 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
     },
     ("get", "/v1/jobs/{job_id}/result"): {409: ["job_not_finished", "result_unavailable"]},
     ("delete", "/v1/jobs/{job_id}"): {409: ["job_finished"]},
+    ("get", "/v1/jobs/{job_id}/events"): {429: ["rate_limited", "too_many_streams"]},
 }
 
 BODY_ERRORS: dict[str, dict[str, Any]] = {

@@ -274,6 +274,15 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
             "(TRAJOPT_MAX_ACTIVE_JOBS)",
         },
     ),
+    "too_many_streams": _error(
+        429,
+        "close a stream, or retry after Retry-After seconds",
+        {
+            "code": "too_many_streams",
+            "message": "too many event streams: this client has 10 event streams open, at most "
+            "10 (TRAJOPT_MAX_STREAMS_PER_CLIENT); close one, or retry after 5 s",
+        },
+    ),
     "queue_unavailable": _error(
         503,
         "nothing was stored; retry after Retry-After seconds",

@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 from collections.abc import Callable, Iterator
@@ -180,6 +181,9 @@ def _apps(tmp: Path) -> dict[str, TestClient]:
         "capped": TestClient(
             create_app(_settings(tmp / "capped", max_active_jobs=1), RecordingDispatcher())
         ),
+        "streams": TestClient(
+            create_app(_settings(tmp / "streams", max_streams_per_client=10), RecordingDispatcher())
+        ),
         "down": TestClient(create_app(_settings(tmp / "down"), NotReady())),
         "unreachable": TestClient(create_app(_settings(tmp / "unreachable"), Unreachable())),
     }
@@ -230,6 +234,16 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
         keys.post("/v1/jobs", json=scenario, headers={"X-API-Key": submitter})
         return keys.post("/v1/jobs", json=scenario, headers={"X-API-Key": submitter})
 
+    def eleven_streams() -> Any:
+        """Ten streams of a queued job held open (they only ping), then one more."""
+        streams = apps["streams"]
+        job_id = streams.post("/v1/jobs", json=scenario).json()["id"]
+        with contextlib.ExitStack() as held:
+            for _ in range(10):
+                opened = held.enter_context(streams.stream("GET", f"/v1/jobs/{job_id}/events"))
+                assert opened.status_code == 200
+            return streams.get(f"/v1/jobs/{job_id}/events")
+
     def two_active() -> Any:
         assert apps["capped"].post("/v1/jobs", json=scenario).status_code == 202
         return apps["capped"].post("/v1/jobs", json=scenario)
@@ -263,6 +277,7 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
         "rate_limited": read_twice,
         "submit_rate_limited": submit_twice,
         "too_many_active_jobs": two_active,
+        "too_many_streams": eleven_streams,
         "queue_unavailable": lambda: apps["unreachable"].post("/v1/jobs", json=scenario),
         "not_ready": lambda: apps["down"].get("/readyz"),
     }
