@@ -56,8 +56,8 @@ class InstantDispatcher(RecordingDispatcher):
         super().__init__()
         self.settings = settings
 
-    def submit(self, job_id: str, limits: TimeLimits) -> None:
-        super().submit(job_id, limits)
+    def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
+        super().submit(job_id, limits, priority)
         if len(self.submitted) % 2:
             execute_job(job_id, settings=self.settings, solve=contract_solve)
 
