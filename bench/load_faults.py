@@ -49,6 +49,14 @@ from bench.tcp_proxy import TcpProxy
 from worker.celery_app import priority_lists
 
 SECRET = "bench-only-8c1d4f2a6b3e9d7c5a1f0e2d4c6b8a9f"
+NEVER_CONVERGE = {
+    "altitude_m": 1e-9,
+    "longitude_deg": 1e-9,
+    "latitude_deg": 1e-9,
+    "flight_path_angle_deg": 1e-9,
+    "heading_deg": 1e-9,
+}
+"""A stop tolerance no iterate meets: a job runs until its time limit."""
 STRANDED_S = 30.0
 """No queued job may wait unsent longer than this after the recovery."""
 STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
@@ -225,6 +233,38 @@ def _through(proxy: TcpProxy, url: str) -> str:
     return make_url(url).set(host="127.0.0.1", port=proxy.port).render_as_string(False)
 
 
+def _near_limit(database_url: str, ran_s: float) -> tuple[str, int] | None:
+    """A job in its first attempt that has run ``ran_s`` or more, and its holder's pid."""
+    import psycopg
+
+    with psycopg.connect(database_url) as conn:
+        row = conn.execute(
+            "SELECT id, lease_holder FROM jobs WHERE status = 'running' AND attempts = 1 "
+            "AND started_at <= now() - make_interval(secs => %s) LIMIT 1",
+            (ran_s,),
+        ).fetchone()
+    if row is None or not row[1]:
+        return None
+    return str(row[0]), int(str(row[1]).rpartition("/")[2])
+
+
+def _pool_pids(worker: _Process) -> set[int]:
+    out = subprocess.run(["pgrep", "-P", str(worker.proc.pid)], capture_output=True, text=True)
+    return {int(pid) for pid in out.stdout.split()}
+
+
+def _job_row(database_url: str, job_id: str) -> dict[str, Any]:
+    import psycopg
+
+    with psycopg.connect(database_url) as conn:
+        row = conn.execute(
+            "SELECT status, attempts, error_code, error_message FROM jobs WHERE id = %s",
+            (job_id,),
+        ).fetchone()
+    assert row is not None
+    return dict(zip(("status", "attempts", "error_code", "error_message"), row, strict=True))
+
+
 def _start_api(env: dict[str, str], port: int, log: Path) -> _Process:
     api = _Process(["serve", "--host", "127.0.0.1", "--port", str(port)], env, log)
     api.wait_for("Application startup complete", 90)
@@ -244,8 +284,12 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
         proxy.start()
         env["DATABASE_URL"] = _through(proxy, direct_url)
     processes: list[_Process] = []
-    method = {"nodes": args.nodes, "max_iterations": args.max_iterations}
+    method: dict[str, Any] = {"nodes": args.nodes, "max_iterations": args.max_iterations}
+    if args.fault == "near-limit":  # jobs that iterate until their own time limit ends them
+        method = {"nodes": 200, "max_iterations": 500, "time_limit_s": args.job_time_limit_s,
+                  "stop_tolerance": NEVER_CONVERGE}  # fmt: skip
     body = {"scenario": args.scenario, "method": method}
+    victim: str | None = None
     monitor: UnsentMonitor | None = None
     try:
         keys = [_create_key(env, f"client-{i}") for i in range(args.clients)]
@@ -272,9 +316,17 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
             due = (
                 accepted_now >= args.kill_after if args.fault == "api" else done >= args.kill_after
             )
+            if args.fault == "near-limit" and fault_at is None:
+                found = _near_limit(direct_url, 0.6 * args.job_time_limit_s)
+                due = found is not None
+                if found is not None:
+                    victim, holder = found
+                    workers = [w for w in workers if holder in _pool_pids(w)] + [
+                        w for w in workers if holder not in _pool_pids(w)
+                    ]  # the worker running the victim first
             if fault_at is None and due:
                 fault_at = time.perf_counter() - start
-                if args.fault == "worker":
+                if args.fault in ("worker", "near-limit"):
                     os.killpg(workers[0].proc.pid, signal.SIGKILL)  # main process and pool child
                     workers[0].proc.wait()
                     time.sleep(args.restart_after_s)
@@ -334,6 +386,7 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
             "fault_at_s": fault_at,
             "recovered_at_s": recovered_at,
             "max_unsent_after_recovery_s": monitor.max_unsent_s if monitor else None,
+            "near_limit_job": _job_row(direct_url, victim) if victim else None,
             "wall_s": wall,
             "status_reads": len(reads),
             "status_read_p50_ms": 1e3 * statistics.median(reads),
@@ -375,8 +428,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kill-after", type=int, default=20,
                         help="kill worker 1 once this many jobs are terminal")  # fmt: skip
     parser.add_argument("--restart-after-s", type=float, default=3.0)
-    parser.add_argument("--fault", choices=("worker", "api", "database"), default="worker",
-                        help="what is lost: a worker, the API, or the database")  # fmt: skip
+    parser.add_argument("--fault", choices=("worker", "api", "database", "near-limit"),
+                        default="worker", help="what is lost: a worker, the API, the database, "
+                        "or a worker whose job has run 60 %% of its time limit")  # fmt: skip
+    parser.add_argument("--job-time-limit-s", type=float, default=6.0,
+                        help="time limit of each job (--fault near-limit)")  # fmt: skip
     parser.add_argument("--outage-s", type=float, default=20.0,
                         help="how long the database is unreachable (--fault database)")  # fmt: skip
     parser.add_argument("--lease-s", type=float, default=10.0)
@@ -397,6 +453,10 @@ def main(argv: list[str] | None = None) -> int:
         and db["succeeded_without_result"] == 0
         and (unsent is None or unsent <= STRANDED_S)
     )
+    near = report["near_limit_job"]
+    if args.fault == "near-limit":  # retried, and ended by its own limit, not the sweeper's
+        ok = ok and near is not None and near["attempts"] == 2
+        ok = ok and "stopped answering" not in str(near["error_message"])
     print("PASS" if ok else "FAIL", f"- {report['accepted']} accepted, "
           f"{sum(db['statuses'].values())} terminal {db['statuses']}, "
           f"p95 status read {report['status_read_p95_ms']:.1f} ms")  # fmt: skip
