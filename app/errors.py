@@ -14,9 +14,11 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from app.storage.session import database_unreachable
 
 log = logging.getLogger(__name__)
 
@@ -189,15 +191,8 @@ async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
-def database_unavailable(exc: Exception) -> bool:
-    """Whether ``exc`` says the database cannot be reached (down, restarting, pool exhausted)."""
-    if isinstance(exc, OperationalError | InterfaceError | PoolTimeoutError):
-        return True
-    return isinstance(exc, DBAPIError) and exc.connection_invalidated
-
-
 async def _database_error(request: Request, exc: Exception) -> JSONResponse:
-    if not database_unavailable(exc):
+    if not database_unreachable(exc):
         return await _unexpected(request, exc)
     log.warning(
         "database unavailable on %s %s: %s",

@@ -112,6 +112,7 @@ _V1_RESPONSES: dict[int | str, dict[str, Any]] = {
     401: {"model": ErrorResponse, "description": "Missing, unknown or revoked API key."},
     413: {"model": ErrorResponse, "description": "The body is over the size limit."},
     429: {"model": ErrorResponse, "description": "Rate limit; retry after Retry-After."},
+    503: {"model": ErrorResponse, "description": "The database is unreachable; retry later."},
 }
 
 

@@ -35,7 +35,7 @@ ERRORS_BY_STATUS: dict[int, list[str]] = {
     415: ["unsupported_media_type"],
     422: ["invalid_parameter"],
     429: ["rate_limited"],
-    503: ["not_ready"],
+    503: ["database_unavailable"],
 }
 """The error codes (keys of ``ERROR_EXAMPLES``) behind each status, unless an operation has its
 own in :data:`OPERATION_ERRORS`; 404 depends on the path (:func:`_error_codes`)."""
@@ -50,7 +50,7 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
             "idempotency_key_reused",
         ],
         429: ["submit_rate_limited", "too_many_active_jobs"],
-        503: ["queue_unavailable"],
+        503: ["queue_unavailable", "database_unavailable"],
     },
     ("post", "/v1/problems/validate"): {
         422: ["invalid_problem", "invalid_request", "over_server_cap"]
@@ -58,6 +58,7 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
     ("get", "/v1/jobs/{job_id}/result"): {409: ["job_not_finished", "result_unavailable"]},
     ("delete", "/v1/jobs/{job_id}"): {409: ["job_finished"]},
     ("get", "/v1/jobs/{job_id}/events"): {429: ["rate_limited", "too_many_streams"]},
+    ("get", "/readyz"): {503: ["not_ready"]},
 }
 
 BODY_ERRORS: dict[str, dict[str, Any]] = {

@@ -23,7 +23,10 @@ class ErrorDetail(BaseModel):
     message: str = Field(..., description="Human-readable explanation.")
     field: str | None = Field(None, description="Dotted path of the offending field, if any.")
     issues: list[FieldIssue] | None = Field(
-        None, description="Every problem found (validation errors only)."
+        None, description="The problems found, at most the first 50 (validation errors only)."
+    )
+    issues_total: int | None = Field(
+        None, description="How many problems there are in all; issues lists at most the first 50."
     )
 
 

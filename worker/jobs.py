@@ -15,13 +15,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pydantic import ValidationError
-from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
 from app.settings import Settings, get_settings
 from app.storage import repository
 from app.storage.models import JobStatus
 from app.storage.repository import ClaimState
-from app.storage.session import Database, get_database
+from app.storage.session import Database, database_unreachable, get_database
 from worker.heartbeat import Heartbeat
 from worker.limits import TimeLimits, job_time_limits
 
@@ -234,14 +233,6 @@ def _finish(attempt: _Attempt, outcome: Outcome) -> str | None:
             return None
         cancelled = _cancelled_after_the_solve(outcome)
         return cancelled.status if _store(session, attempt, cancelled) else None
-
-
-def database_unreachable(exc: BaseException) -> bool:
-    """Whether ``exc`` says the database could not be reached (worth retrying), rather than
-    that it refused the statement."""
-    if isinstance(exc, OperationalError | InterfaceError):
-        return True
-    return isinstance(exc, DBAPIError) and bool(exc.connection_invalidated)
 
 
 def _finish_despite_outages(attempt: _Attempt, outcome: Outcome, retry_s: float) -> str | None:

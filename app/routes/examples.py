@@ -283,6 +283,14 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
             "10 (TRAJOPT_MAX_STREAMS_PER_CLIENT); close one, or retry after 5 s",
         },
     ),
+    "database_unavailable": _error(
+        503,
+        "the database is unreachable; retry after Retry-After seconds",
+        {
+            "code": "database_unavailable",
+            "message": "the database is unreachable; retry after 5 s",
+        },
+    ),
     "queue_unavailable": _error(
         503,
         "nothing was stored; retry after Retry-After seconds",

@@ -36,7 +36,7 @@ JSON = {"Content-Type": "application/json"}
 
 
 def _settings(tmp: Path, **overrides: Any) -> Settings:
-    return Settings(data_dir=tmp, database_url="", broker_url="", **overrides)
+    return Settings(**{"data_dir": tmp, "database_url": "", "broker_url": "", **overrides})
 
 
 @pytest.fixture
@@ -185,6 +185,16 @@ def _apps(tmp: Path) -> dict[str, TestClient]:
             create_app(_settings(tmp / "streams", max_streams_per_client=10), RecordingDispatcher())
         ),
         "down": TestClient(create_app(_settings(tmp / "down"), NotReady())),
+        "no_database": TestClient(
+            create_app(
+                _settings(
+                    tmp / "no-database",
+                    database_url="postgresql+psycopg://nobody@127.0.0.1:1/none",
+                    auto_migrate=False,
+                ),
+                RecordingDispatcher(),
+            )
+        ),
         "unreachable": TestClient(create_app(_settings(tmp / "unreachable"), Unreachable())),
     }
 
@@ -280,6 +290,7 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
         "too_many_streams": eleven_streams,
         "queue_unavailable": lambda: apps["unreachable"].post("/v1/jobs", json=scenario),
         "not_ready": lambda: apps["down"].get("/readyz"),
+        "database_unavailable": lambda: apps["no_database"].get("/v1/jobs"),
     }
 
 
