@@ -22,18 +22,12 @@ import httpx
 import pytest
 import redis
 
+from bench.load_faults import NEVER_CONVERGE
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = "rlv-min-heat-load"
 """The built-in scenario the service tests submit."""
 TERMINAL = frozenset({"succeeded", "failed", "cancelled", "timed_out"})
-NEVER_CONVERGE = {
-    "altitude_m": 1e-9,
-    "longitude_deg": 1e-9,
-    "latitude_deg": 1e-9,
-    "flight_path_angle_deg": 1e-9,
-    "heading_deg": 1e-9,
-}
-"""A stop tolerance no iterate meets: the solve runs until cancelled or out of iterations."""
 
 
 def long_job(scenario: str) -> dict[str, Any]:
