@@ -16,6 +16,16 @@ import threading
 from bench.service_overhead import _free_port
 
 
+def _release(sock: socket.socket) -> None:
+    """End a connection for real: shut it down first, which wakes the other direction's thread
+    blocked in ``recv`` (a bare ``close`` while another thread reads leaves the connection open,
+    and the database would keep the session, its transaction and its locks)."""
+    with contextlib.suppress(OSError):
+        sock.shutdown(socket.SHUT_RDWR)
+    with contextlib.suppress(OSError):
+        sock.close()
+
+
 class TcpProxy:
     """Forwards ``127.0.0.1:self.port`` to ``upstream`` while it is up."""
 
@@ -50,7 +60,7 @@ class TcpProxy:
         for sock in open_now:
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
-                sock.close()
+            _release(sock)
 
     stop = cut
 
@@ -86,8 +96,7 @@ class TcpProxy:
             pass
         finally:
             for sock in (source, target):
-                with contextlib.suppress(OSError):
-                    sock.close()
+                _release(sock)
             with self._lock:
                 self._open.discard(source)
                 self._open.discard(target)

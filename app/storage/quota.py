@@ -17,6 +17,8 @@ from sqlalchemy.orm import Session
 
 from app.storage import repository
 
+SUBMISSION_LOCK_TIMEOUT_MS = 10_000
+"""How long a submission waits for its client's lock before it is refused (503, retry)."""
 SUBMISSION_LOCK_SPACE = 0x7472616A  # "traj"
 """First key of the two-key advisory locks of submissions, apart from any other lock's."""
 
@@ -29,6 +31,9 @@ def lock_owner_submissions(session: Session, owner: str) -> None:
     """
     dialect = session.get_bind().dialect.name
     if dialect == "postgresql":
+        # a lock held by a session that never ends (a half-open connection of a killed API)
+        # must not block the client forever: give up after a while (503, retry later)
+        session.execute(text(f"SET LOCAL lock_timeout = '{SUBMISSION_LOCK_TIMEOUT_MS}ms'"))
         session.execute(
             text("SELECT pg_advisory_xact_lock(:space, hashtext(:owner))"),
             {"space": SUBMISSION_LOCK_SPACE, "owner": owner},
