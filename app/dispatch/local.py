@@ -180,8 +180,13 @@ class LocalDispatcher:
                     return
                 if len(self._pending) >= self._settings.local_workers:
                     return
-                _, _, job_id = heapq.heappop(self._waiting)
-                future = self._executor.submit(_run_job, job_id, self._settings)
+                entry = heapq.heappop(self._waiting)
+                job_id = entry[2]
+                try:
+                    future = self._executor.submit(_run_job, job_id, self._settings)
+                except BrokenProcessPool:  # being rebuilt: it re-dispatches every queued job
+                    heapq.heappush(self._waiting, entry)
+                    return
                 self._pending[job_id] = future
             future.add_done_callback(functools.partial(self._done, job_id))
 
