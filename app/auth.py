@@ -34,11 +34,6 @@ class Principal:
     client: str
     key_id: str | None = None
 
-    @property
-    def rate_bucket(self) -> str:
-        """The identity rate limits are counted against: the key, else the client."""
-        return f"key:{self.key_id}" if self.key_id else f"client:{self.client}"
-
 
 def generate_key() -> str:
     """A new random API key (``tj_`` + 43 URL-safe characters, 256 bits)."""

@@ -3,24 +3,24 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
-from tests.integration.harness import ApiServer, ServiceClient, service_free_env
-
-
-def embedded_env(data_dir: str) -> dict[str, str]:
-    """This process's environment without service settings, the data in ``data_dir``."""
-    env = service_free_env()
-    env.update(TRAJOPT_DATA_DIR=data_dir, TRAJOPT_LOCAL_WORKERS="1")
-    return env
+from tests.integration.harness import ApiServer, ServiceClient, embedded_env
 
 
 @pytest.fixture(scope="session")
-def embedded_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ApiServer]:
-    """One embedded server for the session's contract and docs tests."""
-    data_dir = tmp_path_factory.mktemp("embedded-contract")
-    yield from ApiServer(embedded_env(str(data_dir)), data_dir / "serve.log").serving()
+def embedded_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The data folder (SQLite file) of :func:`embedded_server`."""
+    return tmp_path_factory.mktemp("embedded-contract")
+
+
+@pytest.fixture(scope="session")
+def embedded_server(embedded_data_dir: Path) -> Iterator[ApiServer]:
+    """One embedded server for the session's contract, docs and override tests."""
+    env = embedded_env(embedded_data_dir)
+    yield from ApiServer(env, embedded_data_dir / "serve.log").serving()
 
 
 @pytest.fixture

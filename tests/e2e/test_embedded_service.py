@@ -16,8 +16,8 @@ from tests.integration.harness import (
     ApiServer,
     ServiceClient,
     cancel_during_verification,
+    embedded_env,
     long_job,
-    service_free_env,
     verification_job,
 )
 
@@ -35,9 +35,7 @@ def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def server(data_dir: Path) -> Iterator[ApiServer]:
-    env = service_free_env()
-    env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
-    yield from ApiServer(env, data_dir / "serve.log").serving()
+    yield from ApiServer(embedded_env(data_dir), data_dir / "serve.log").serving()
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ from tests.integration.harness import (
     ServiceClient,
     assert_fair_share,
     create_api_key,
-    service_free_env,
+    embedded_env,
 )
 
 pytestmark = pytest.mark.slow
@@ -24,9 +24,8 @@ SECRET = "e2e-only-3f9a1c7d5b2e8f4a6c0d1e3f5a7b9c2d"
 
 @pytest.fixture
 def clients(tmp_path: Path) -> Iterator[tuple[ServiceClient, ServiceClient]]:
-    env = service_free_env(
-        TRAJOPT_DATA_DIR=str(tmp_path),
-        TRAJOPT_LOCAL_WORKERS="1",
+    env = embedded_env(
+        tmp_path,
         TRAJOPT_AUTH_MODE="api-keys",
         TRAJOPT_API_KEY_SECRET=SECRET,
     )

@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import json
 import sqlite3
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from tests.integration.harness import SCENARIO, ApiServer, ServiceClient, service_free_env
+from tests.integration.harness import SCENARIO, ServiceClient
 from worker.solver.atmosphere import ExponentialAtmosphere, US76Atmosphere
 
 pytestmark = pytest.mark.slow
@@ -24,21 +23,14 @@ pytestmark = pytest.mark.slow
 US76 = {"planet": {"atmosphere": {"model": "us76"}}}
 
 
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("overrides-data")
-
-
-@pytest.fixture(scope="module")
-def server(data_dir: Path) -> Iterator[ApiServer]:
-    env = service_free_env()
-    env.update(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1")
-    yield from ApiServer(env, data_dir / "serve.log").serving()
+@pytest.fixture
+def client(embedded_client: ServiceClient) -> ServiceClient:
+    return embedded_client
 
 
 @pytest.fixture
-def client(server: ApiServer) -> Iterator[ServiceClient]:
-    yield from server.serving_client()
+def data_dir(embedded_data_dir: Path) -> Path:
+    return embedded_data_dir
 
 
 def _stored_problem(data_dir: Path, job_id: str) -> dict[str, Any]:

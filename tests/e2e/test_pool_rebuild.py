@@ -16,8 +16,8 @@ from tests.integration.harness import (
     SCENARIO,
     ApiServer,
     ServiceClient,
+    embedded_env,
     long_job,
-    service_free_env,
 )
 
 pytestmark = pytest.mark.slow
@@ -29,8 +29,7 @@ def _iterating(job: dict[str, Any]) -> bool:
 
 @pytest.fixture
 def server(tmp_path: Path) -> Iterator[ApiServer]:
-    env = service_free_env(TRAJOPT_DATA_DIR=str(tmp_path), TRAJOPT_LOCAL_WORKERS="1")
-    yield from ApiServer(env, tmp_path / "serve.log").serving()
+    yield from ApiServer(embedded_env(tmp_path), tmp_path / "serve.log").serving()
 
 
 def _holder_pid(data_dir: Path, job_id: str) -> int:

@@ -57,6 +57,11 @@ def service_free_env(**settings: str) -> dict[str, str]:
     return env
 
 
+def embedded_env(data_dir: Path | str, **settings: str) -> dict[str, str]:
+    """The environment of an embedded server (SQLite in ``data_dir``, a one-process pool)."""
+    return service_free_env(TRAJOPT_DATA_DIR=str(data_dir), TRAJOPT_LOCAL_WORKERS="1", **settings)
+
+
 def verification_job(scenario: str) -> dict[str, Any]:
     """A job whose verification takes many seconds (1000 nodes) after three quick iterations."""
     return {"scenario": scenario, "method": {"nodes": 1000, "max_iterations": 3}}

@@ -2,26 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from pathlib import Path
-
-import pytest
-
 from app.dispatch.fair import LEVELS, fair_priority
-from app.settings import Settings
 from app.storage import repository
-from app.storage.migrate import upgrade_database
 from app.storage.models import JobStatus
 from app.storage.repository import NewJob
-from app.storage.session import Database, get_database
-
-
-@pytest.fixture
-def database(tmp_path: Path) -> Iterator[Database]:
-    settings = Settings(data_dir=tmp_path, database_url="", broker_url="")
-    database = get_database(settings.effective_database_url)
-    upgrade_database(database.engine)
-    yield database
+from app.storage.session import Database
 
 
 def _new(db: Database, owner: str) -> str:

@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 
 import pytest
 from sqlalchemy import update
@@ -20,26 +18,13 @@ from sqlalchemy import update
 from app.dispatch.local import holder_is_gone
 from app.settings import Settings
 from app.storage import repository
-from app.storage.migrate import upgrade_database
 from app.storage.models import Job, process_identity, utcnow
 from app.storage.repository import ClaimState, NewJob
-from app.storage.session import Database, get_database
+from app.storage.session import Database
 from app.submission import resolve_submission
 from app.sweeper import sweep_once
 from tests.unit.test_service_api import RecordingDispatcher
 from worker.jobs import execute_job
-
-
-@pytest.fixture
-def settings(tmp_path: Path) -> Settings:
-    return Settings(data_dir=tmp_path, database_url="", broker_url="", lease_s=30.0)
-
-
-@pytest.fixture
-def database(settings: Settings) -> Iterator[Database]:
-    database = get_database(settings.effective_database_url)
-    upgrade_database(database.engine)
-    yield database
 
 
 def _new(db: Database) -> str:

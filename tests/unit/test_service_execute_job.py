@@ -8,33 +8,19 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 
 from app.settings import Settings
 from app.storage import repository
-from app.storage.migrate import upgrade_database
 from app.storage.models import Job
-from app.storage.session import Database, get_database
+from app.storage.session import Database
 from app.submission import resolve_submission
 from worker.jobs import execute_job, json_safe
 
 SCENARIO = "rlv-min-heat-load"
-
-
-@pytest.fixture
-def settings(tmp_path: Path) -> Settings:
-    return Settings(data_dir=tmp_path, database_url="", broker_url="", max_attempts=3)
-
-
-@pytest.fixture
-def database(settings: Settings) -> Iterator[Database]:
-    database = get_database(settings.effective_database_url)
-    upgrade_database(database.engine)
-    yield database
 
 
 def _submit(database: Database, method: dict[str, Any] | None = None) -> str:
