@@ -1,0 +1,85 @@
+"""The golden cases: each built-in scenario with its own method, and variants that take the
+other code paths of both methods (grids, discretizations, first-order steps, a table
+atmosphere without compiled kernels, forced virtual control, a failure by iteration budget)."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from app.schemas import ProblemDocument
+from worker.solver.api import solve_problem
+from worker.solver.scenarios import get_scenario, list_scenarios
+
+DATA = Path(__file__).with_name("data")
+
+VOLATILE_KEYS = frozenset(
+    {
+        "timing",
+        "created_at",
+        "packages",
+        "python",
+        "platform",
+        "conic_solve_s",
+        "conic_setup_s",
+        "conic_solver_setup_s",
+        "iteration_wall_s",
+        "discretization_s",
+    }
+)
+"""Wall-clock figures and the environment: not outputs of the arithmetic."""
+
+
+def _with(scenario: str, method: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    doc = copy.deepcopy(get_scenario(scenario).problem)
+    doc["method"] = {**doc.get("method", {}), **method}
+    for key, value in extra.items():
+        doc[key] = value
+    return doc
+
+
+def _us76(scenario: str, method: dict[str, Any]) -> dict[str, Any]:
+    doc = _with(scenario, method)
+    doc["planet"]["atmosphere"] = {"model": "us76"}
+    return doc
+
+
+def cases() -> dict[str, dict[str, Any]]:
+    """Every golden case by name: its problem document."""
+    out = {s.name: copy.deepcopy(s.problem) for s in list_scenarios()}
+    heat, foh = "rlv-min-heat-load", "rlv-max-terminal-velocity"
+    out.update(
+        {
+            "energy-uniform-grid": _with(heat, {"grid": "uniform", "nodes": 61}),
+            "energy-virtual-control-on": _with(heat, {"virtual_control": "on", "nodes": 61}),
+            "energy-us76": _us76(heat, {"nodes": 61}),
+            "energy-iteration-budget": _with(heat, {"max_iterations": 3, "nodes": 61}),
+            "foh-uniform-grid": _with(foh, {"grid": "uniform"}),
+            "foh-first-order": _with(foh, {"second_order": False}),
+            "foh-trapezoid": _with(foh, {"discretization": "trapezoid", "second_order": False}),
+            "foh-no-intersample": _with(foh, {"intersample_constraints": False}),
+            "foh-us76": _us76(foh, {}),
+            "foh-iteration-budget": _with(foh, {"max_iterations": 4}),
+        }
+    )
+    return out
+
+
+def _strip(value: Any) -> Any:
+    """The document without its volatile entries; non-finite floats as strings (JSON)."""
+    if isinstance(value, dict):
+        return {k: _strip(v) for k, v in value.items() if k not in VOLATILE_KEYS}
+    if isinstance(value, list):
+        return [_strip(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    return value
+
+
+def solve(document: dict[str, Any]) -> dict[str, Any]:
+    """The case's result document, stripped of what is not arithmetic (``VOLATILE_KEYS``)."""
+    result = solve_problem(ProblemDocument.model_validate(document))
+    return _strip(json.loads(json.dumps(result, allow_nan=True)))

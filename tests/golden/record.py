@@ -1,0 +1,22 @@
+"""Record the golden outputs: ``python -m tests.golden.record [case ...]`` (all by default)."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from tests.golden.cases import DATA, cases, solve
+
+
+def main(names: list[str]) -> None:
+    """Solve each named case (every case without names) and write its golden file."""
+    DATA.mkdir(exist_ok=True)
+    every = cases()
+    for name in names or sorted(every):
+        out = solve(every[name])
+        (DATA / f"{name}.json").write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+        print(f"{name}: {out['status']}, {len(out.get('history', []))} iterations")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,1 @@
+"""State models: layouts of the states each formulation carries, and their dynamics."""
