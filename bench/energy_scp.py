@@ -17,9 +17,9 @@ import statistics
 import time
 
 from app.schemas import ProblemDocument
+from worker.solver.methods.energy_scp.method import run as run_energy_scp
 from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario
-from worker.solver.scp.energy_scp import run_energy_scp, to_trajectory
 from worker.solver.verification import verify
 
 
@@ -43,9 +43,9 @@ def bench(nodes: int, repeats: int) -> dict[str, float]:
         conics.append(outcome.conic_solve_s)
         inside.append(outcome.conic_solve_s + sum(r.conic_solver_setup_s for r in outcome.history))
         iters.append(len(outcome.history))
-    assert outcome is not None
+    assert outcome is not None and outcome.trajectory is not None
     v_start = time.perf_counter()
-    report = verify(model, to_trajectory(model, outcome))
+    report = verify(model, outcome.trajectory)
     verification = time.perf_counter() - v_start
     ratios = [w / c for w, c in zip(walls, conics, strict=True)]
     ratios_inside = [w / c for w, c in zip(walls, inside, strict=True)]

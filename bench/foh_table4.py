@@ -19,9 +19,9 @@ import statistics
 import time
 
 from app.schemas import ProblemDocument
+from worker.solver.methods.foh_ptr.method import run as run_foh_ptr
 from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario
-from worker.solver.scp.foh_ptr import run_foh_ptr, to_trajectory
 from worker.solver.verification import verify
 
 FIRST_ORDER = {
@@ -77,7 +77,8 @@ def run(
         conics.append(out.conic_solve_s)
         ratios.append(wall / out.conic_solve_s)
         ratios_inside.append(wall / inside)
-    rep = verify(model, to_trajectory(model, out))
+    assert out.trajectory is not None
+    rep = verify(model, out.trajectory)
     err = rep["terminal_error_vs_optimized"]
     ratio = max(v["ratio"] for v in rep["path_maxima"].values() if "ratio" in v)
     return {

@@ -10,7 +10,7 @@ from app.schemas.base import FieldProblem, StrictModel, Text, raise_problems
 from app.schemas.constraints import ControlLimits, PathConstraints
 from app.schemas.examples import RLV_MIN_HEAT_LOAD
 from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_WAYPOINTS
-from app.schemas.methods import EnergyScpOptions, MethodSpec
+from app.schemas.methods import MethodSpec, default_method_options
 from app.schemas.objective import ObjectiveInput
 from app.schemas.planet import Planet
 from app.schemas.regions import NoFlyZone, Waypoint
@@ -74,7 +74,7 @@ class ProblemDocument(StrictModel):
         '"min_heat_load".',
     )
     method: MethodSpec = Field(
-        default_factory=EnergyScpOptions,
+        default_factory=default_method_options,
         description='Solution method and its options; default {"name": "energy-scp"}.',
     )
 

@@ -16,9 +16,9 @@ import pytest
 from app.schemas import ProblemDocument
 from worker.solver.api import solve_problem
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus, make_backend
+from worker.solver.methods.energy_scp.method import run as run_energy_scp
 from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario
-from worker.solver.scp.energy_scp import run_energy_scp, to_trajectory
 from worker.solver.verification import verify
 
 REFERENCE_HEAT_LOAD_J_M2 = 731.01e6
@@ -98,7 +98,8 @@ def test_verification_catches_a_perturbed_control() -> None:
     doc = _doc()
     model = build_problem(doc)
     outcome = run_energy_scp(model, doc.method)
-    traj = to_trajectory(model, outcome)
+    traj = outcome.trajectory
+    assert traj is not None
     assert verify(model, traj)["feasible"]
     k = traj.bank.size
     traj.bank[2 * k // 3 :] += math.radians(10.0)
@@ -197,4 +198,4 @@ def test_uniform_grid_of_the_paper_is_available() -> None:
     model = build_problem(doc)
     outcome = run_energy_scp(model, doc.method)
     assert outcome.status == "converged"
-    assert np.allclose(np.diff(outcome.e), np.diff(outcome.e)[0])
+    assert np.allclose(np.diff(outcome.trajectory.grid), np.diff(outcome.trajectory.grid)[0])

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from app.schemas import ProblemDocument
+from worker.solver.models.layout import BANK_STATE
 from worker.solver.problem import EntryProblem, build_problem
 from worker.solver.scenarios import get_scenario
-from worker.solver.scp.foh_ptr import state_scale
 from worker.solver.transcription.foh_exact import interval_maps
 from worker.solver.transcription.foh_hessian import convexify, lagrangian_hessian
 from worker.solver.transcription.time_grid import initial_reference
@@ -33,7 +33,7 @@ def problem() -> EntryProblem:
 def _scales(problem: EntryProblem) -> np.ndarray:
     """The subproblem's units of z_k, w_k, w_{k+1}, s_k (1 km, 0.5 deg, ..., 1 deg/s, 10 s)."""
     rate = np.radians(1.0) * problem.scales.time_s
-    return np.r_[state_scale(problem), rate, rate, 10.0 / problem.scales.time_s]
+    return np.r_[BANK_STATE.trust_units(problem.scales), rate, rate, 10.0 / problem.scales.time_s]
 
 
 def _reference(problem: EntryProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

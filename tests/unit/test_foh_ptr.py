@@ -18,10 +18,9 @@ import pytest
 from app.schemas import ProblemDocument
 from worker.solver.api import solve_problem
 from worker.solver.methods import check_support
+from worker.solver.methods.foh_ptr import method as foh_ptr
 from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario
-from worker.solver.scp import foh_ptr
-from worker.solver.scp.foh_ptr import run_foh_ptr
 
 REFERENCE_VF_M_S = 971.03
 TABLE4_40_NODES = {  # paper 002 Table 4, proposed method, 40 nodes (rounded up)
@@ -163,9 +162,9 @@ def test_a_guess_that_reaches_the_ground_fails_the_job_with_the_reason() -> None
 
 
 def _run_case_1() -> Any:
-    """Case 1 through the loop itself (``run_foh_ptr``), adaptive grid."""
+    """Case 1 through the method itself (``methods.foh_ptr.method.run``), adaptive grid."""
     doc = _doc(grid="adaptive")
-    return run_foh_ptr(build_problem(doc), doc.method)
+    return foh_ptr.run(build_problem(doc), doc.method)
 
 
 def test_helper_thread_changes_nothing_but_time(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -176,7 +175,8 @@ def test_helper_thread_changes_nothing_but_time(monkeypatch: pytest.MonkeyPatch)
     in_line = _run_case_1()
     assert overlapped.status == in_line.status == "converged"
     assert len(overlapped.history) == len(in_line.history)
-    assert np.array_equal(overlapped.z, in_line.z) and np.array_equal(overlapped.s, in_line.s)
+    a, b = overlapped.trajectory, in_line.trajectory
+    assert np.array_equal(a.y, b.y) and np.array_equal(a.t, b.t) and np.array_equal(a.bank, b.bank)
 
 
 def test_a_rejected_step_returns_to_its_reference_and_the_loop_goes_on(
@@ -186,8 +186,8 @@ def test_a_rejected_step_returns_to_its_reference_and_the_loop_goes_on(
     the reference that made it (discarding the curvature started for the rejected one) and
     still converges. Rejection is forced once, at the third step's check."""
     checks = itertools.count(1)
-    real = foh_ptr._finite
-    monkeypatch.setattr(foh_ptr, "_finite", lambda data: next(checks) != 3 and real(data))
+    real = foh_ptr.finite
+    monkeypatch.setattr(foh_ptr, "finite", lambda data: next(checks) != 3 and real(data))
     out = _run_case_1()
     rejected = [r for r in out.history if "rejected" in r.extra]
     assert [r.iteration for r in rejected] == [3]

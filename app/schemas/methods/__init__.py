@@ -1,0 +1,78 @@
+"""Solution methods and their options: one options model per method, one file per method.
+
+``METHOD_OPTION_TYPES`` is the one list of methods: the problem contract's ``MethodSpec`` union
+and the solver's method registry (``worker.solver.methods.registry``) are both built from it.
+To add a method: write its options model (a ``name`` literal, ``nodes``, the shared budgets of
+``ScpRunOptions``) in a file here, add it to ``METHOD_OPTION_TYPES``, and write its solver
+package ``worker/solver/methods/<name with underscores>/``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Annotated, Any, Final, Union
+
+from pydantic import BeforeValidator, Field
+
+from app.schemas.base import untagged_errors
+from app.schemas.methods.common import BoundedOptions, ScpRunOptions
+from app.schemas.methods.energy_scp import EnergyScpOptions, EnergyStopTolerance
+from app.schemas.methods.foh_ptr import FohPtrOptions, FohStopTolerance
+
+METHOD_OPTION_TYPES: Final[tuple[type[ScpRunOptions], ...]] = (EnergyScpOptions, FohPtrOptions)
+"""Every method's options model: the one place a method is registered."""
+
+DEFAULT_METHOD: Final[str] = "energy-scp"
+"""Method used when a document names none."""
+
+
+def method_name(options_type: type[ScpRunOptions]) -> str:
+    """The method name an options model declares (the default of its ``name`` literal)."""
+    name = options_type.model_fields["name"].default
+    assert isinstance(name, str), options_type
+    return name
+
+
+METHOD_OPTIONS: dict[str, type[ScpRunOptions]] = {method_name(t): t for t in METHOD_OPTION_TYPES}
+"""Options model of every method, by method name."""
+
+METHOD_NAMES: tuple[str, ...] = tuple(METHOD_OPTIONS)
+"""Names of the available methods."""
+
+
+def default_method_options() -> ScpRunOptions:
+    """The default method with its default options."""
+    return METHOD_OPTIONS[DEFAULT_METHOD].model_validate({})
+
+
+def _default_name(value: Any) -> Any:
+    """A method object without ``name`` selects the default method."""
+    if isinstance(value, dict) and "name" not in value:
+        return {**value, "name": DEFAULT_METHOD}
+    return value
+
+
+if TYPE_CHECKING:
+    MethodSpec = ScpRunOptions
+else:
+    MethodSpec = Annotated[
+        Annotated[Union[METHOD_OPTION_TYPES], Field(discriminator="name")],  # noqa: UP007
+        untagged_errors("name"),
+        BeforeValidator(_default_name),
+    ]
+"""The solution method and its options, selected by ``name`` (statically: the shared base)."""
+
+__all__ = [
+    "DEFAULT_METHOD",
+    "METHOD_NAMES",
+    "METHOD_OPTIONS",
+    "METHOD_OPTION_TYPES",
+    "BoundedOptions",
+    "EnergyScpOptions",
+    "EnergyStopTolerance",
+    "FohPtrOptions",
+    "FohStopTolerance",
+    "MethodSpec",
+    "ScpRunOptions",
+    "default_method_options",
+    "method_name",
+]

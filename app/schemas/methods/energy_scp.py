@@ -1,0 +1,89 @@
+"""Options of the energy-domain SCP with post-correction (paper 000, method ``energy-scp``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from app.schemas.limits import MAX_NODES
+from app.schemas.methods.common import BoundedOptions, ScpRunOptions
+
+
+class EnergyStopTolerance(BoundedOptions):
+    """Convergence test of energy-domain SCP: every state changes less than its tolerance.
+
+    Values from Jung, Kim, Choi and Lee, sec. 4; the paper lists four values for five states,
+    the heading takes the flight path angle's.
+    """
+
+    altitude_m: float = Field(100.0, gt=0, description="Altitude change tolerance, m.")
+    longitude_deg: float = Field(0.6, gt=0, description="Longitude change tolerance, deg.")
+    latitude_deg: float = Field(0.6, gt=0, description="Latitude change tolerance, deg.")
+    flight_path_angle_deg: float = Field(
+        1.0, gt=0, description="Flight path angle change tolerance, deg."
+    )
+    heading_deg: float = Field(1.0, gt=0, description="Heading change tolerance, deg.")
+
+
+class EnergyScpOptions(ScpRunOptions):
+    """Energy-domain sequential convex programming with post-correction (Jung et al.).
+
+    Energy is the independent variable, path limits become lower bounds on radius; the trust
+    region weight and post-correction step are the paper's (Table 1, sec. 4). Soft terminal
+    weights come from the terminal conditions themselves. Departures from the paper, with
+    their reasons, are listed in docs/methods/energy-scp.md.
+    """
+
+    name: Literal["energy-scp"] = Field("energy-scp", description="Method name.")
+    nodes: int = Field(
+        121,
+        ge=3,
+        le=MAX_NODES,
+        description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}.",
+    )
+    grid: Literal["time_adaptive", "uniform"] = Field(
+        "time_adaptive",
+        description='Node placement in energy: "uniform" as in the paper, or "time_adaptive": '
+        "start from a glide-time estimate and re-space the nodes evenly in flight time after "
+        "the second iteration, so the terminal maneuver is resolved.",
+    )
+    stop_tolerance: EnergyStopTolerance = Field(
+        default_factory=EnergyStopTolerance,
+        description="Per-state change below which the iteration has converged.",
+    )
+    post_correction: bool = Field(
+        True, description="Shorten the step where the linearization error is large."
+    )
+    post_correction_step: float = Field(
+        0.7, gt=0, le=1, description="Post-correction step length beta, in (0, 1]."
+    )
+    linearization_error_threshold: float = Field(
+        1e-3,
+        gt=0,
+        description="Nondimensional linearization error above which a node is post-corrected.",
+    )
+    weight_regularization: float = Field(
+        1000.0,
+        ge=0,
+        description="Weight of the cone-tightness regularization: a reward on the bank-plane "
+        "control along its previous direction (the linearization of |u|), which keeps "
+        "(cos sigma, sin sigma) on the unit circle (paper 000 eq. 22). Per unit energy.",
+    )
+    weight_control_smoothness: float = Field(
+        0.1,
+        ge=0,
+        description="Weight of the penalty on control changes between nodes; suppresses the "
+        "node-to-node bank chattering by which a discrete solution can mimic reduced lift.",
+    )
+    weight_trust_region: float = Field(
+        0.005, gt=0, description="Weight on the trust-region slack (w_tr)."
+    )
+    virtual_control: Literal["off", "auto", "on"] = Field(
+        "auto",
+        description='Dynamics slack against artificial infeasibility: "auto" adds it only '
+        "when a subproblem is infeasible without it.",
+    )
+    weight_virtual_control: float = Field(
+        1e4, gt=0, description="Weight on the virtual-control (dynamics slack) norm."
+    )

@@ -1,0 +1,166 @@
+"""What every method is and returns: ``MethodInfo`` (the registry entry), ``MethodResult``, and
+the support checks methods share (field issues for features they cannot handle)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+from app.schemas import FieldIssue, ProblemDocument
+from app.schemas.methods import ScpRunOptions
+from worker.solver.problem import EntryProblem
+from worker.solver.scp.history import IterationRecord
+from worker.solver.scp.loop import IterationSink, ScpOutcome, ScpStatus, StopCheck
+from worker.solver.verification import OptimizedTrajectory
+
+Options = TypeVar("Options", bound=ScpRunOptions)
+SupportCheck = Callable[[ProblemDocument], list[FieldIssue]]
+
+
+@dataclass
+class MethodResult:
+    """Status, the optimized trajectory (None when no iteration finished), and the history.
+
+    ``objective_terms`` holds each objective term's value on the final trajectory in SI units
+    (J/m^2, s, m/s, deg), keyed by term name.
+    """
+
+    status: ScpStatus
+    trajectory: OptimizedTrajectory | None
+    history: list[IterationRecord]
+    conic_solve_s: float
+    objective_terms: dict[str, float] = field(default_factory=dict)
+    failure_code: str | None = None
+    failure_message: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def method_result(
+    outcome: ScpOutcome[Any],
+    trajectory: OptimizedTrajectory | None,
+    objective_terms: dict[str, float],
+    extra: dict[str, Any] | None = None,
+) -> MethodResult:
+    """The driver's outcome as a method result (the trajectory only when an iteration ran)."""
+    return MethodResult(
+        status=outcome.status,
+        trajectory=trajectory if outcome.history else None,
+        history=outcome.history,
+        conic_solve_s=outcome.conic_solve_s,
+        objective_terms=objective_terms,
+        failure_code=outcome.failure_code,
+        failure_message=outcome.failure_message,
+        extra=dict(extra or {}),
+    )
+
+
+class Runner(Generic[Options]):
+    """Runs a method with its own options type: ``run(problem, options, on_iteration,
+    should_stop)``; the method's module is imported on first use (keeps start-up light)."""
+
+    def __init__(self, module: str, options_type: type[Options]) -> None:
+        self.module = module
+        self.options_type = options_type
+
+    def __call__(
+        self,
+        problem: EntryProblem,
+        options: ScpRunOptions,
+        on_iteration: IterationSink | None = None,
+        should_stop: StopCheck | None = None,
+    ) -> MethodResult:
+        """Run the method (``options`` must be its own options model)."""
+        import importlib
+
+        if not isinstance(options, self.options_type):
+            raise TypeError(f"{self.module} needs {self.options_type.__name__}")
+        run = importlib.import_module(self.module).run
+        result: MethodResult = run(
+            problem, options, on_iteration=on_iteration, should_stop=should_stop
+        )
+        return result
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    """A selectable method: its name, what it is, where it comes from, what it supports."""
+
+    name: str
+    title: str
+    paper: str
+    features: tuple[str, ...]
+    objectives: tuple[str, ...]
+    options_type: type[ScpRunOptions]
+    check: SupportCheck
+    run: Runner[Any]
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description with the default options of the method."""
+        return {
+            "name": self.name,
+            "title": self.title,
+            "paper": self.paper,
+            "features": list(self.features),
+            "objectives": list(self.objectives),
+            "default_options": self.options_type.model_validate({}).model_dump(mode="json"),
+        }
+
+
+def issue(field: str, message: str, code: str = "unsupported_by_method") -> FieldIssue:
+    """A field issue (``unsupported_by_method`` unless another code is given)."""
+    return FieldIssue(field=field, message=message, code=code)
+
+
+def scheduled_alpha_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
+    """Refusals shared by methods that fly a scheduled angle of attack with CL(alpha), CD(alpha)."""
+    out = []
+    if doc.vehicle.angle_of_attack.mode == "optimized":
+        out.append(
+            issue(
+                "vehicle.angle_of_attack",
+                f"{name} flies a scheduled angle of attack; "
+                "give a velocity_schedule, table or constant",
+            )
+        )
+    if doc.vehicle.aerodynamics.model == "parabolic_polar":
+        out.append(
+            issue(
+                "vehicle.aerodynamics",
+                f"{name} needs CL and CD as functions of angle "
+                "of attack (polynomial or table), not a normalized-lift polar",
+            )
+        )
+    if doc.control_limits.alpha_rate_max_deg_s is not None:
+        out.append(
+            issue(
+                "control_limits.alpha_rate_max_deg_s",
+                f"{name} does not optimize the angle of attack",
+            )
+        )
+    return out
+
+
+def objective_issues(
+    doc: ProblemDocument, name: str, supported: Sequence[str], verb: str
+) -> list[FieldIssue]:
+    """Objective terms the method cannot ``verb`` (minimize, optimize), and a heat load
+    objective without its heating model."""
+    out = []
+    for i, term in enumerate(doc.objective.terms):
+        if term.name not in supported:
+            out.append(
+                issue(
+                    f"objective.terms[{i}].name",
+                    f"{name} cannot {verb} {term.name!r}; it supports {', '.join(supported)}",
+                )
+            )
+        if term.name == "min_heat_load" and doc.path_constraints.heat_rate is None:
+            out.append(
+                issue(
+                    "path_constraints.heat_rate",
+                    "min_heat_load needs the heating "
+                    "model (k_q and exponents) in path_constraints.heat_rate",
+                )
+            )
+    return out

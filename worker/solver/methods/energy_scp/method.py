@@ -1,0 +1,269 @@
+"""Energy-domain SCP with post-correction (paper 000, Jung, Kim, Choi & Lee), as hooks of the
+shared driver (``scp.loop``).
+
+Paper 000 sec. 3.4, steps 1-4: linearize the energy-form dynamics about the reference, solve the
+trapezoidal SOCP (transcription.energy_trapezoid), shorten the step of every (node, state) whose
+linearization error is large (post-correction, eq. 38), and stop when no state moved more than
+its tolerance (eq. 37). Departures from the printed method, each a correction: the exact
+V(r, e) replaces eq. 8's approximation; the trust region is scaled per state; virtual control is
+added only when a subproblem is infeasible, and then penalized and reported; after two
+iterations the nodes are re-spaced evenly in flight time.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.schemas.methods import EnergyScpOptions
+from worker.solver.conic import ConeProblem, ConicBackend, ConicSolution, ConicStatus, make_backend
+from worker.solver.dynamics import (
+    EnergyDerivatives,
+    energy_dynamics,
+    energy_rates,
+    time_state_from_energy,
+)
+from worker.solver.methods.base import MethodResult, method_result
+from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
+from worker.solver.methods.energy_scp.objective import EnergyObjective
+from worker.solver.methods.energy_scp.records import iteration_record
+from worker.solver.methods.terminal_pending import terminal_rows
+from worker.solver.models.layout import ENERGY
+from worker.solver.path_limits import radius_lower_bound
+from worker.solver.problem import EntryProblem
+from worker.solver.scp.loop import (
+    VIRTUAL_CONTROL_TOL,
+    Budget,
+    ConicCall,
+    IterationSink,
+    Judgement,
+    Proposal,
+    StartError,
+    StopCheck,
+    run_scp,
+)
+from worker.solver.scp.trust import FixedTrustWeight
+from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
+from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
+from worker.solver.verification import OptimizedTrajectory
+
+Array = np.ndarray
+REGRID_AFTER = 2
+"""Iteration after which the nodes are re-spaced evenly in the iterate's flight time."""
+
+
+@dataclass
+class EnergyIterate:
+    """A reference (e, x, u) after post-correction, and the subproblem solution that made it
+    (the trajectory reported is the solution, on its own grid)."""
+
+    e: Array
+    x: Array
+    u: Array
+    e_solution: Array
+    x_solution: Array
+    u_solution: Array
+
+
+class EnergyScp:
+    """Paper 000's method on the driver: linearize, build, propose, judge (``scp.loop``)."""
+
+    def __init__(self, problem: EntryProblem, options: EnergyScpOptions) -> None:
+        self.problem, self.options = problem, options
+        e0, ef = energy_bounds(problem)
+        self.e = energy_grid(
+            e0, ef, options.nodes, "uniform" if options.grid == "uniform" else "glide_time"
+        )
+        self.scale = ENERGY.trust_units(problem.scales)
+        self.r_ceiling = 1.0 + 200e3 / problem.scales.radius_m
+        self.r_lower: Array | None = None
+        self.regrid_done = 0
+        self.trust = FixedTrustWeight(options.weight_trust_region)
+        self.terminal = terminal_rows(problem, ENERGY, fixed="hard")
+        self.tol = ENERGY.deltas_from_si(options.stop_tolerance, problem.scales)
+        self.next_ed: EnergyDerivatives | None = None
+        self.data: SubproblemData | None = None
+        self.tr = self.transcription(options.virtual_control == "on")
+
+    def transcription(self, virtual_control: bool) -> EnergyTrapezoid:
+        """The trapezoidal SOCP on the current grid, with or without virtual control."""
+        o = self.options
+        return EnergyTrapezoid(
+            self.e,
+            self.scale,
+            self.terminal,
+            bank_max=self.problem.bank_max,
+            path_limits=self.problem.limits.any,
+            virtual_control=virtual_control,
+            weight_trust_region=self.trust.weight,
+            weight_regularization=o.weight_regularization,
+            weight_virtual_control=o.weight_virtual_control,
+            weight_control_smoothness=o.weight_control_smoothness,
+        )
+
+    def start(self) -> EnergyIterate:
+        """The straight-line guess; fails when no altitude meets the path limits somewhere."""
+        p, e = self.problem, self.e
+        x, u = initial_guess(p, e)
+        if p.limits.any:
+            self.r_lower, feasible = radius_lower_bound(p.forces, p.limits, e, 1.0, self.r_ceiling)
+            if not np.all(feasible):
+                bad = int(np.argmin(feasible))
+                raise StartError(
+                    "path_limits_infeasible",
+                    f"no altitude satisfies the path limits at energy {e[bad]:.4f} "
+                    f"(node {bad}); raise the limits or change the energy range",
+                )
+        self.next_ed = energy_dynamics(x, u, e, p.forces, p.omega)
+        self.objective = EnergyObjective(p, e, x, self.next_ed)
+        return EnergyIterate(e, x, u, e, x, u)
+
+    def linearize(self, reference: EnergyIterate) -> EnergyDerivatives:
+        """The energy-form dynamics and their Jacobians about ``reference``."""
+        ed, self.next_ed = self.next_ed, None
+        if ed is not None:  # the initial guess's, computed for the objective's scales
+            return ed
+        p = self.problem
+        return energy_dynamics(reference.x, reference.u, reference.e, p.forces, p.omega)
+
+    def subproblem(
+        self, reference: EnergyIterate, linearization: EnergyDerivatives, iteration: int
+    ) -> ConeProblem:
+        """The trapezoidal SOCP about ``reference`` (paper 000 Problem 3)."""
+        run_grad, term_grad = self.objective.gradients(reference.x, linearization)
+        self.data = SubproblemData(
+            x_ref=reference.x,
+            u_ref=reference.u,
+            f=linearization.f,
+            A=linearization.A,
+            B=linearization.B,
+            cost_gradient=run_grad,
+            terminal_gradient=term_grad,
+            radius_lower=self.r_lower,
+            x0=self.problem.y0[list(TIME_INDEX)],
+        )
+        return self.tr.build(self.data)
+
+    def solve(
+        self, problem: ConeProblem, conic: ConicCall, limit_s: float, deadline: float
+    ) -> ConicSolution:
+        """One solve; an infeasible one is solved again with virtual control when it is
+        ``auto``."""
+        solution = conic(problem, limit_s)
+        if (
+            solution.status == ConicStatus.INFEASIBLE
+            and self.options.virtual_control == "auto"
+            and not self.tr.virtual_control
+        ):
+            assert self.data is not None
+            self.tr = self.transcription(True)
+            remaining = max(deadline - time.perf_counter(), 1e-3)
+            solution = conic(self.tr.build(self.data), remaining)
+        return solution
+
+    def propose(
+        self,
+        reference: EnergyIterate,
+        linearization: EnergyDerivatives,
+        solution: ConicSolution,
+        iteration: int,
+    ) -> Proposal[EnergyIterate]:
+        """Unpack the solution and post-correct it (paper 000 eq. 38 and the state update
+        algorithm): the step of each (node, state) whose linearization error exceeds the
+        threshold is shortened."""
+        p, o, e = self.problem, self.options, reference.e
+        assert self.data is not None and solution.x is not None
+        sub = self.tr.unpack(solution.x, self.data)
+        # values only: the Jacobians are needed at the next reference, linearized later
+        rates = energy_rates(sub.x, sub.u, e, p.forces, p.omega)
+        ed, x_ref, u_ref = linearization, reference.x, reference.u
+        f_lin = (
+            ed.f
+            + np.einsum("kij,kj->ki", ed.A, sub.x - x_ref)
+            + np.einsum("kij,kj->ki", ed.B, sub.u - u_ref)
+        )
+        lin_err = np.abs(rates.f - f_lin) * self.tr.quad_w[:, None] / self.scale[None, :]
+        corrected = np.zeros_like(lin_err, dtype=bool)
+        x_next = sub.x
+        if o.post_correction:
+            corrected = lin_err > o.linearization_error_threshold
+            corrected[0] = False
+            x_next = np.where(corrected, x_ref + o.post_correction_step * (sub.x - x_ref), sub.x)
+        self.change = np.max(np.abs(x_next - x_ref), axis=0)
+        values = self.objective.values(sub.x, rates)
+        record, self.virtual = iteration_record(
+            self, iteration, sub, solution, values, lin_err, corrected
+        )
+        return Proposal(EnergyIterate(e, x_next, sub.u, e, sub.x, sub.u), record)
+
+    def judge(
+        self, reference: EnergyIterate, proposal: Proposal[EnergyIterate]
+    ) -> Judgement[EnergyIterate, EnergyDerivatives]:
+        """Every step is taken; small when no state moved more than its tolerance (eq. 37) on
+        a grid that has been used once. Not converged after ``REGRID_AFTER`` iterations, the
+        grid is re-spaced evenly in flight time (which resolves the terminal maneuver that a
+        grid even in energy crowds into its last intervals)."""
+        iteration = proposal.record.iteration
+        small = bool(np.all(self.change < self.tol)) and iteration > self.regrid_done
+        verdict: Judgement[EnergyIterate, EnergyDerivatives] = Judgement(
+            accepted=True, small=small, virtual_control=self.virtual
+        )
+        done = small and self.virtual <= VIRTUAL_CONTROL_TOL
+        if not done and iteration == REGRID_AFTER and self.options.grid != "uniform":
+            verdict.reference = self.regrid(proposal.reference)
+            self.regrid_done = iteration + 1
+            proposal.record.extra["regrid"] = True
+        return verdict
+
+    def regrid(self, ref: EnergyIterate) -> EnergyIterate:
+        """``ref`` interpolated onto a grid even in its flight time (the solution keeps its own
+        grid); the transcription, objective and radius bounds follow the new grid."""
+        p, e = self.problem, ref.e
+        e_new = time_uniform_grid(e, 1.0 / energy_rates(ref.x, ref.u, e, p.forces, p.omega).edot)
+        x = np.column_stack([np.interp(e_new, e, ref.x[:, j]) for j in range(ref.x.shape[1])])
+        u = np.column_stack([np.interp(e_new, e, ref.u[:, j]) for j in range(ref.u.shape[1])])
+        self.e = e_new
+        self.tr.set_grid(e_new)
+        self.objective.e = e_new
+        if self.r_lower is not None:
+            self.r_lower, _ = radius_lower_bound(p.forces, p.limits, e_new, 1.0, self.r_ceiling)
+        return EnergyIterate(e_new, x, u, ref.e_solution, ref.x_solution, ref.u_solution)
+
+
+def to_trajectory(problem: EntryProblem, ref: EnergyIterate) -> OptimizedTrajectory:
+    """The solution's nodes as a time-form trajectory: V from (r, e), time by the trapezoid of
+    dt/de."""
+    e, x, u = ref.e_solution, ref.x_solution, ref.u_solution
+    ed = energy_dynamics(x, u, e, problem.forces, problem.omega)
+    y, _ = time_state_from_energy(x, e)
+    dt_de = 1.0 / ed.edot
+    t = np.concatenate([[0.0], np.cumsum(0.5 * (dt_de[1:] + dt_de[:-1]) * np.diff(e))])
+    bank = np.arctan2(u[:, 1], u[:, 0])
+    return OptimizedTrajectory("energy", e, y, t, bank)
+
+
+def run(
+    problem: EntryProblem,
+    options: EnergyScpOptions,
+    *,
+    on_iteration: IterationSink | None = None,
+    should_stop: StopCheck | None = None,
+    backend: ConicBackend | None = None,
+) -> MethodResult:
+    """Run paper 000's SCP on ``problem`` with its ``options``."""
+    start = time.perf_counter()
+    method = EnergyScp(problem, options)
+    conic = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
+    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
+    outcome = run_scp(
+        method, budget, conic, on_iteration=on_iteration, should_stop=should_stop, start=start
+    )
+    terms: dict[str, float] = {}
+    if outcome.history:
+        last = outcome.history[-1].cost_terms
+        terms = {k.split(":", 1)[1]: v for k, v in last.items() if k.startswith("objective:")}
+    ref = outcome.reference
+    trajectory = to_trajectory(problem, ref) if ref is not None and outcome.history else None
+    return method_result(outcome, trajectory, terms)

@@ -1,0 +1,76 @@
+"""The objective of paper 000's method: running costs (heat load, flight time) by the trapezoid
+in energy and terminal costs on the last node, each normalized to O(1) on the initial guess."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from worker.solver.dynamics import EnergyDerivatives, EnergyRates
+from worker.solver.objectives import (
+    RUNNING_COSTS,
+    TERMINAL_COSTS,
+    RunningCost,
+    energy_running_cost,
+    energy_running_density,
+    trapezoid,
+)
+from worker.solver.problem import EntryProblem
+
+Array = np.ndarray
+
+
+class EnergyObjective:
+    """The problem's objective terms, normalized so that each is O(1) on the initial guess.
+
+    A running cost is evaluated once per linearization ``ed`` (the last one is kept).
+    """
+
+    def __init__(self, problem: EntryProblem, e: Array, x: Array, ed: EnergyDerivatives) -> None:
+        self.problem = problem
+        self.e = e
+        self.scale: dict[str, float] = {}
+        self._cached_ed: EnergyDerivatives | None = None
+        self._cached: dict[str, RunningCost] = {}
+        for term in problem.objective:
+            if term.name in RUNNING_COSTS:
+                value = trapezoid(self._running(term.name, x, ed).density, e)
+                self.scale[term.name] = abs(value) if value != 0 else 1.0
+            else:
+                self.scale[term.name] = 1.0
+
+    def _running(self, name: str, x: Array, ed: EnergyDerivatives) -> RunningCost:
+        """Running cost ``name`` on ``x`` (``ed`` is the dynamics at ``x``), cached per ``ed``."""
+        if ed is not self._cached_ed:
+            self._cached_ed = ed
+            self._cached = {}
+        cost = self._cached.get(name)
+        if cost is None:
+            cost = self._cached[name] = energy_running_cost(self.problem, name, x, ed)
+        return cost
+
+    def gradients(self, x: Array, ed: EnergyDerivatives) -> tuple[Array, Array]:
+        """Running-cost gradient per unit energy (K, 5) and terminal gradient (5,), normalized."""
+        run = np.zeros_like(x)
+        term = np.zeros(x.shape[1])
+        for t in self.problem.objective:
+            w = t.weight / self.scale[t.name]
+            if t.name in RUNNING_COSTS:
+                run += w * self._running(t.name, x, ed).gradient
+            else:
+                idx, sign = TERMINAL_COSTS[t.name]
+                term[idx] += w * sign
+        return run, term
+
+    def values(self, x: Array, rates: EnergyRates) -> dict[str, float]:
+        """Each term's value in SI units (J/m^2, s, deg) on trajectory x (``rates`` at x)."""
+        out: dict[str, float] = {}
+        for t in self.problem.objective:
+            if t.name in RUNNING_COSTS:
+                density = energy_running_density(self.problem, t.name, x, rates)
+                out[t.name] = trapezoid(density, self.e)
+            else:
+                idx, _ = TERMINAL_COSTS[t.name]
+                out[t.name] = math.degrees(float(x[-1, idx]))
+        return out

@@ -1,0 +1,64 @@
+"""The history record of one iteration of paper 000's method: the step, its cost terms, its
+size per state, the post-corrected nodes and the relaxation gap of the control cone."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from worker.solver.conic import ConicSolution
+from worker.solver.models.layout import ENERGY
+from worker.solver.scp.history import IterationRecord
+
+if TYPE_CHECKING:
+    from worker.solver.methods.energy_scp.method import EnergyScp
+
+Array = np.ndarray
+
+
+def iteration_record(
+    method: EnergyScp,
+    iteration: int,
+    sub: Any,
+    solution: ConicSolution,
+    values: dict[str, float],
+    lin_err: Array,
+    corrected: Array,
+) -> tuple[IterationRecord, float]:
+    """The record of the unpacked solution ``sub`` and its virtual-control norm."""
+    p, o, tr = method.problem, method.options, method.tr
+    vc_norm = float(np.sum(np.abs(sub.virtual_control))) if sub.virtual_control is not None else 0.0
+    tr_slack = float(np.sum(sub.dx_scaled**2))
+    scales = method.objective.scale
+    record = IterationRecord(
+        iteration=iteration,
+        cost=(
+            next(iter(values.values()))
+            if len(values) == 1
+            else sum(t.weight * values[t.name] / scales[t.name] for t in p.objective)
+        ),
+        subproblem_cost=float(solution.objective if solution.objective is not None else np.nan),
+        cost_terms={
+            **{f"objective:{n}": v for n, v in values.items()},
+            "soft_terminal": float(np.dot([t.weight for t in tr.soft], sub.soft_slacks))
+            if tr.soft
+            else 0.0,
+            "trust_region": float(method.trust.weight * tr_slack),
+            "virtual_control": o.weight_virtual_control * vc_norm if tr.virtual_control else 0.0,
+        },
+        objective_value=next(iter(values.values())) if len(values) == 1 else None,
+        max_state_change=ENERGY.deltas_to_si(method.change, p.scales),
+        trust_region_slack=tr_slack,
+        virtual_control_norm=vc_norm,
+        linearization_error=float(np.max(lin_err)),
+        nodes_post_corrected=int(np.count_nonzero(np.any(corrected, axis=1))),
+        relaxation_gap=float(np.max(1.0 - np.linalg.norm(sub.u, axis=1))),
+        conic_status=solution.status.value,
+        conic_solver=solution.solver,
+        conic_solve_s=solution.solve_time_s,
+        conic_setup_s=solution.setup_time_s,
+        conic_solver_setup_s=solution.clarabel_setup_s,
+        iteration_wall_s=0.0,
+    )
+    return record, vc_norm

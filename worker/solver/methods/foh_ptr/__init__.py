@@ -1,0 +1,31 @@
+"""Paper 002's time-domain SCP with exact FOH discretization and an adaptive grid (Ma, Chen,
+Wang & Zhang)."""
+
+from app.schemas.methods import FohPtrOptions
+from worker.solver.methods.base import MethodInfo, Runner
+from worker.solver.methods.foh_ptr.support import NAME, OBJECTIVES, check_support
+
+METHOD = MethodInfo(
+    name=NAME,
+    title="Time-domain SCP with exact FOH discretization and adaptive grid (experimental: "
+    "converges to local optima below the reference; see docs/methods/foh-ptr.md)",
+    paper="Ma, Chen, Wang & Zhang, Real-Time Trajectory Planning for Hypersonic Entry Using "
+    "Adaptive Non-Uniform Discretization and Convex Optimization (paper 002)",
+    features=(
+        "time as independent variable, fixed final time",
+        "bank angle as a state, bank rate as the control (first-order hold)",
+        "inverse-free exact FOH discretization stitched to the propagated reference",
+        "adaptive non-uniform grid (interval lengths as decision variables)",
+        "path limits (heat rate, dynamic pressure, load factor), log-transformed",
+        "no-fly zones",
+        "bank magnitude and bank rate limits",
+        "terminal conditions fixed, range, free or soft",
+        "rotating or non-rotating planet",
+        "exponential or US76 atmosphere",
+        "polynomial or tabulated aerodynamics with a scheduled angle of attack",
+    ),
+    objectives=OBJECTIVES,
+    options_type=FohPtrOptions,
+    check=check_support,
+    run=Runner("worker.solver.methods.foh_ptr.method", FohPtrOptions),
+)

@@ -1,0 +1,316 @@
+"""Time-domain SCP with exact FOH discretization and an adaptive grid (paper 002, Algorithm 1),
+as hooks of the shared driver (``scp.loop``).
+
+Each iteration solves Problem 2 (a QP) about the reference with the penalized trust region and,
+by default, the Lagrangian curvature of the interval maps (an SQP step); its solution is the
+candidate, whose own discretization gives the step's defect (nodes minus their propagation).
+The defect adapts the trust weight (``scp.trust.DefectTrustWeight``; paper 002 keeps it fixed),
+a step whose propagation leaves the models' range is rejected, and a step is small only when
+no node, bank angle or interval length moved more than its tolerance, the defect is within the
+stop tolerance, the objective has settled and the trust weight is not above its initial value
+(a step kept small by a heavy trust weight is not a converged one).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.schemas.methods import FohPtrOptions
+from worker.solver import side_thread
+from worker.solver.conic import ConeProblem, ConicBackend, ConicSolution, make_backend
+from worker.solver.dynamics_compiled import compiled_parameters, warm_up
+from worker.solver.methods.base import MethodResult, method_result
+from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
+from worker.solver.methods.foh_ptr.records import iteration_record
+from worker.solver.methods.terminal_pending import terminal_rows
+from worker.solver.problem import EntryProblem
+from worker.solver.scp.loop import (
+    Budget,
+    ConicCall,
+    IterationSink,
+    Judgement,
+    Proposal,
+    StartError,
+    StopCheck,
+    run_scp,
+)
+from worker.solver.scp.trust import DefectTrustWeight
+from worker.solver.transcription.foh_subproblem import FohSubproblem, GridLimits, SubproblemData
+from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
+from worker.solver.verification import OptimizedTrajectory
+
+Array = np.ndarray
+Linearization = tuple[SubproblemData, Array]
+"""The subproblem data about a reference and the path-limit ratios at its nodes."""
+
+DIFFERENCE_STEP = 1e-5
+"""Step of the Hessian's forward differences in scaled subproblem units (1 cm of altitude, about
+0.02 m/s of speed): truncation error ~1e-5 relative, rounding ~1e-11."""
+
+
+@dataclass
+class FohIterate:
+    """A reference: nodes z (K, 7), bank rates w (K,), interval lengths s (K-1,), the dynamics
+    rows' multipliers of the subproblem that made it, and the objective terms on it (SI)."""
+
+    z: Array
+    w: Array
+    s: Array
+    multipliers: Array | None = None
+    values: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class _Pending:
+    """What judging a proposal needs beyond its record: the candidate's linearization and the
+    step's size, direction and costs."""
+
+    linearization: Linearization
+    weight: float
+    small: bool
+    virtual: float
+    cost: float
+    step: Array
+    reversal: float
+
+
+class FohPtr:
+    """Paper 002's method on the driver: linearize, build, propose, judge (``scp.loop``)."""
+
+    def __init__(self, problem: EntryProblem, options: FohPtrOptions) -> None:
+        if problem.final_time is None:
+            raise ValueError("foh-ptr needs a fixed final time")
+        self.problem, self.options = problem, options
+        layout = Linearizer.layout
+        sc = problem.scales
+        self.scale = layout.trust_units(sc)
+        self.lin = Linearizer(problem, options, self.scale)
+        grid = (
+            GridLimits(
+                delta_min=options.interval_min_s / sc.time_s,
+                delta_max=options.interval_max_s / sc.time_s,
+                delta_trust=options.interval_trust_s / sc.time_s,
+                final_time=problem.final_time,
+            )
+            if options.grid == "adaptive"
+            else None
+        )
+        lin = self.lin
+        self.sub = FohSubproblem(
+            options.nodes,
+            state_scale=self.scale,
+            rate_scale=math.radians(1.0) * sc.time_s,
+            interval_scale=10.0 / sc.time_s,
+            n_initial=lin.initial.size,
+            terminal=terminal_rows(
+                problem,
+                layout,
+                fixed="virtual",
+                virtual_weight=options.weight_virtual_control,
+                trust_units=self.scale,
+            ),
+            bank_max=problem.bank_max,
+            bank_rate_max=problem.bank_rate_max,
+            n_limits=len(lin.limits),
+            n_zones=len(problem.no_fly_zones),
+            grid=grid,
+            n_inner_rows=len(lin.limits) + len(problem.no_fly_zones) if lin.inner_on else 0,
+            weight_trust_region=options.weight_trust_region,
+            weight_trust_interval=options.weight_trust_interval,
+            weight_buffer=options.weight_virtual_control,
+            hessian_blocks=lin.second_order,
+            identity_e=options.discretization == "exact_foh",
+        )
+        lin.difference_steps = DIFFERENCE_STEP * self.sub.block_scale
+        lin.blocks = self.sub.curvature_layout
+        tol = options.stop_tolerance
+        self.tol_z = layout.deltas_from_si(tol, sc)
+        self.tol_s = tol.interval_s / sc.time_s
+        self.trust = DefectTrustWeight(
+            initial=options.weight_trust_region,
+            minimum=options.weight_trust_region_min,
+            defect_target=options.trust_defect_target,
+            factor=options.trust_factor,
+            reversal_cosine=options.trust_reversal_cosine,
+        )
+        self.extra: dict[str, float] = {}
+        self.prev_cost: float | None = None
+        self.pending: _Pending | None = None
+        self.second_order = False  # whether the last subproblem carried the curvature
+        self.it_start = time.perf_counter()
+        # The curvature of a new reference needs only the reference and the multipliers: with
+        # a second CPU it is integrated and convexified on the helper thread while this one
+        # discretizes the same reference (the kernels release the GIL); otherwise in line.
+        self.overlap = lin.second_order and side_thread.available()
+        self.curvature: Future[Array | None] | None = None
+
+    def start(self) -> FohIterate:
+        """The constant-bank initial reference that best meets the terminal conditions."""
+        try:
+            ref = initial_reference(self.problem, self.options.nodes, self.options.initial_bank_deg)
+        except InitialGuessError as exc:  # the method cannot start: a failed job, not an error
+            raise StartError("initial_guess", str(exc)) from exc
+        self.extra["initial_bank_deg"] = ref.bank_deg
+        return FohIterate(ref.z, ref.w, ref.s)
+
+    def linearize(self, reference: FohIterate) -> Linearization:
+        """Subproblem data about ``reference`` (``Linearizer.data``)."""
+        return self.lin.data(reference.z, reference.w, reference.s)
+
+    def subproblem(
+        self, reference: FohIterate, linearization: Linearization, iteration: int
+    ) -> ConeProblem:
+        """Problem 2 about ``reference``: virtual-control weight ramped up, current trust weight,
+        and the curvature (from the helper thread when it overlapped)."""
+        o, sub = self.options, self.sub
+        self.it_start = time.perf_counter()
+        sub.set_virtual_factor(
+            min(o.virtual_control_growth ** (iteration - 1), 1.0e6)
+            * o.weight_virtual_control_initial
+            / o.weight_virtual_control
+            if o.weight_virtual_control_initial < o.weight_virtual_control
+            else 1.0
+        )
+        if sub.w_buf > o.weight_virtual_control:
+            sub.set_virtual_factor(1.0)
+        sub.w_tr = self.trust.weight
+        if self.curvature is None:  # in line: one CPU, or a reference restored after a rejection
+            z, w, s = reference.z, reference.w, reference.s
+            self.curvature = side_thread.completed(
+                self.lin.curvature(z, w, s, reference.multipliers)
+            )
+        curvature = self.curvature
+        problem = sub.build(linearization[0], curvature.result)  # waits for the curvature last
+        self.second_order = curvature.result() is not None
+        self.curvature = None
+        return problem
+
+    def solve(
+        self, problem: ConeProblem, conic: ConicCall, limit_s: float, deadline: float
+    ) -> ConicSolution:
+        """One solve, no retry."""
+        return conic(problem, limit_s)
+
+    def propose(
+        self,
+        reference: FohIterate,
+        linearization: Linearization,
+        solution: ConicSolution,
+        iteration: int,
+    ) -> Proposal[FohIterate]:
+        """Unpack the step, start the candidate's curvature, discretize about the candidate (it
+        judges the step) and record the iteration."""
+        lin_s = time.perf_counter() - self.it_start
+        sub, scale = self.sub, self.scale
+        data, ratio = linearization
+        assert solution.x is not None
+        nz = scale.size
+        multipliers = (
+            solution.y[: sub.N * nz].reshape(sub.N, nz) / scale  # rows divided by the scale
+            if self.lin.second_order and solution.y is not None
+            else None
+        )
+        new = sub.unpack(solution.x, data)
+        if self.overlap and multipliers is not None:  # the candidate's curvature, on the helper
+            self.curvature = side_thread.submit(
+                self.lin.curvature, new.z, new.w, new.s, multipliers
+            )
+        report = self.lin.report()
+        candidate = self.lin.data(new.z, new.w, new.s)  # the next linearization judges this step
+        assert self.lin.objective is not None
+        values = self.lin.objective.values(new.z, new.s)
+        step = np.concatenate([new.dz.ravel(), new.dw])
+        record, small, virtual = iteration_record(
+            self, iteration, reference, new, data, ratio, report, values, solution, lin_s, step
+        )
+        self.pending = _Pending(
+            linearization=candidate,
+            weight=self.trust.weight,
+            small=small,
+            virtual=virtual,
+            cost=self.lin.objective.normalized(values),
+            step=step,
+            reversal=self.trust.reversal(step),
+        )
+        return Proposal(FohIterate(new.z, new.w, new.s, multipliers, values), record)
+
+    def judge(
+        self, reference: FohIterate, proposal: Proposal[FohIterate]
+    ) -> Judgement[FohIterate, Linearization]:
+        """Reject a step whose propagation is not finite (back to the reference, heavier trust
+        weight); else adapt the trust weight to its defect and test it for convergence."""
+        pending, record = self.pending, proposal.record
+        assert pending is not None
+        self.pending = None
+        if not finite(pending.linearization[0]):
+            self.curvature = None  # of the rejected candidate: not used
+            restored = self.linearize(reference)
+            self.trust.rejected()
+            record.extra["rejected"] = "the step's propagation left the models' range"
+            return Judgement(accepted=False, linearization=restored)
+        by_state, step_defect = defect(pending.linearization[0], self.scale)
+        self.trust.accepted(pending.step, pending.reversal, step_defect)
+        record.extra["step_defect"] = step_defect
+        o = self.options
+        settled = self.prev_cost is not None and abs(pending.cost - self.prev_cost) <= (
+            o.stop_tolerance.relative_cost * max(abs(pending.cost), 1.0)
+        )
+        self.prev_cost = pending.cost
+        small = (
+            pending.small
+            and settled
+            and pending.weight <= o.weight_trust_region
+            and bool(np.all(by_state <= self.tol_z))
+        )
+        return Judgement(
+            accepted=True,
+            small=small,
+            virtual_control=pending.virtual,
+            linearization=pending.linearization,
+        )
+
+
+def to_trajectory(reference: FohIterate) -> OptimizedTrajectory:
+    """The nodes as a time-grid trajectory, with the FOH bank rate for exact bank propagation."""
+    t = np.concatenate([[0.0], np.cumsum(reference.s)])
+    sigma = reference.z.shape[1] - 1
+    return OptimizedTrajectory(
+        "time",
+        t,
+        reference.z[:, :sigma].copy(),
+        t,
+        reference.z[:, sigma].copy(),
+        bank_rate=reference.w.copy(),
+    )
+
+
+def run(
+    problem: EntryProblem,
+    options: FohPtrOptions,
+    *,
+    on_iteration: IterationSink | None = None,
+    should_stop: StopCheck | None = None,
+    backend: ConicBackend | None = None,
+) -> MethodResult:
+    """Run paper 002's SCP on ``problem`` (fixed final time) with its ``options``."""
+    if compiled_parameters(problem.forces, problem.omega) is not None:
+        warm_up()  # compile or load the kernels before the clock starts (at once when loaded)
+    start = time.perf_counter()
+    method = FohPtr(problem, options)
+    conic = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
+    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
+    outcome = run_scp(
+        method, budget, conic, on_iteration=on_iteration, should_stop=should_stop, start=start
+    )
+    ref = outcome.reference
+    return method_result(
+        outcome,
+        to_trajectory(ref) if ref is not None else None,
+        dict(ref.values) if ref is not None else {},
+        method.extra,
+    )

@@ -1,0 +1,93 @@
+"""The history record of one iteration of paper 002's method: the step, its cost terms, its
+size per state, the virtual control it spent and what the linearization saw."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from worker.solver.conic import ConicSolution
+from worker.solver.methods.foh_ptr.linearizer import defect
+from worker.solver.scp.history import IterationRecord
+from worker.solver.transcription.foh_subproblem import SubproblemData
+
+if TYPE_CHECKING:
+    from worker.solver.methods.foh_ptr.method import FohIterate, FohPtr
+
+Array = np.ndarray
+
+
+def iteration_record(
+    method: FohPtr,
+    iteration: int,
+    reference: FohIterate,
+    new: Any,
+    data: SubproblemData,
+    ratio: Array,
+    report: dict[str, Any],
+    values: dict[str, float],
+    solution: ConicSolution,
+    discretization_s: float,
+    step: Array,
+) -> tuple[IterationRecord, bool, float]:
+    """The record of the step ``new`` (the unpacked solution) made about ``reference`` by the
+    subproblem of ``data``; whether the step is below the stop tolerances, and its
+    virtual-control norm (scaled units)."""
+    o, sub, lin = method.options, method.sub, method.lin
+    sc = method.problem.scales
+    z, s = reference.z, reference.s
+    change = np.max(np.abs(new.z - z), axis=0)
+    change_s = float(np.max(np.abs(new.s - s))) if s.size else 0.0
+    w_tr = method.trust.weight
+    tr_slack = float(np.dot(step, step))
+    quad, center = data.quad_z, data.quad_center
+    nl_pen = float(np.sum(quad[:, 3] * (new.z[:, 3] - z[:, 3]) ** 2))
+    zone_pen = float(np.sum(quad[:, 1:3] * (new.z[:, 1:3] - center[:, 1:3]) ** 2))
+    virtual = np.array([t.virtual for t in sub.soft], dtype=bool)  # terminal buffers
+    soft_weights = np.array([t.weight for t in sub.soft if not t.virtual])
+    virtual_unit = 1.0 / method.scale[[t.state for t in sub.soft if t.virtual]]
+    soft = float(np.dot(soft_weights, new.soft_slacks[~virtual]))
+    vc_norm = float(np.sum(new.soft_slacks[virtual] * virtual_unit) + np.sum(new.buffers))
+    t_nodes = np.concatenate([[0.0], np.cumsum(new.s)]) * sc.time_s
+    record = IterationRecord(
+        iteration=iteration,
+        cost=float(solution.objective if solution.objective is not None else np.nan),
+        cost_terms={
+            **{f"objective:{n}": v for n, v in values.items()},
+            "trust_region": w_tr * tr_slack,
+            "trust_interval": o.weight_trust_interval * float(np.sum(new.ds**2)),
+            "nonlinear_path": nl_pen,
+            "no_fly_zone": zone_pen,
+            "soft_terminal": soft,
+            "virtual_control": o.weight_virtual_control * vc_norm,
+        },
+        objective_value=next(iter(values.values())) if len(values) == 1 else None,
+        max_state_change=lin.layout.deltas_to_si(change, sc),
+        trust_region_slack=tr_slack,
+        virtual_control_norm=vc_norm,
+        linearization_error=defect(data, method.scale)[1],
+        nodes_post_corrected=0,
+        relaxation_gap=0.0,
+        conic_status=solution.status.value,
+        conic_solver=solution.solver,
+        conic_solve_s=solution.solve_time_s,
+        conic_setup_s=solution.setup_time_s,
+        conic_solver_setup_s=solution.clarabel_setup_s,
+        iteration_wall_s=0.0,
+        extra={
+            "max_interval_change_s": change_s * sc.time_s,
+            "interval_s_min": float(np.min(new.s) * sc.time_s),
+            "interval_s_max": float(np.max(new.s) * sc.time_s),
+            "path_ratio_at_nodes": {
+                name: float(np.max(ratio[:, j])) for j, name in enumerate(lin.limits)
+            },
+            **report,
+            "discretization_s": discretization_s,
+            "second_order_step": method.second_order,
+            "weight_trust_region": w_tr,
+            "node_times_s": t_nodes.tolist(),
+        },
+    )
+    small = bool(np.all(change <= method.tol_z) and change_s <= method.tol_s)
+    return record, small, vc_norm

@@ -1,0 +1,74 @@
+"""Globalization strategies: how the weight of a penalized trust region follows the iterates.
+
+Paper 000 keeps its trust-region weight fixed (``FixedTrustWeight``); the time-domain method
+adapts it to the defect of each step (``DefectTrustWeight``: paper 002 keeps it fixed, which
+stalls or wanders on other problems). Further strategies (a line search or filter, paper 003;
+the SCvx ratio test, paper 001) go here beside them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+Array = np.ndarray
+
+TRUST_WEIGHT_MAX = 1e3
+"""Heaviest trust weight: beyond it a step is too short to move the iterates at all."""
+
+
+@dataclass
+class FixedTrustWeight:
+    """A constant trust-region weight (paper 000, Table 1)."""
+
+    weight: float
+
+    @property
+    def initial(self) -> float:
+        """The weight the run started with."""
+        return self.weight
+
+
+@dataclass
+class DefectTrustWeight:
+    """Adapt the trust weight w_tr to each step's defect, and grow it when the steps swing back.
+
+    A step's defect (nodes minus their own propagation) grows about as the square of its
+    length, and its length as 1 / w_tr, so w_tr is scaled by sqrt(defect / target) within
+    ``factor`` either way; a step that points back against the previous one (cosine below
+    ``-reversal_cosine``) or that is rejected multiplies it by ``factor``.
+    """
+
+    initial: float
+    minimum: float
+    defect_target: float
+    factor: float
+    reversal_cosine: float
+
+    def __post_init__(self) -> None:
+        self.weight = self.initial
+        self._last_step: Array | None = None
+
+    def reversal(self, step: Array) -> float:
+        """Cosine between ``step`` and the last accepted step (0 for the first)."""
+        last = self._last_step
+        if last is None:
+            return 0.0
+        norm = float(np.linalg.norm(step) * np.linalg.norm(last))
+        return float(np.dot(step, last)) / norm if norm > 0.0 else 0.0
+
+    def accepted(self, step: Array, reversal: float, defect: float) -> None:
+        """Update after an accepted step with its reversal cosine and defect (scaled units)."""
+        if reversal < -self.reversal_cosine:  # the iterates swing back
+            self.weight = min(self.weight * self.factor, TRUST_WEIGHT_MAX)
+        else:
+            ratio = math.sqrt(max(defect, 1e-12) / self.defect_target)
+            ratio = min(max(ratio, 1.0 / self.factor), self.factor)
+            self.weight = min(max(self.weight * ratio, self.minimum), TRUST_WEIGHT_MAX)
+        self._last_step = step
+
+    def rejected(self) -> None:
+        """Update after a rejected step: a shorter next step."""
+        self.weight = min(self.weight * self.factor, TRUST_WEIGHT_MAX)
