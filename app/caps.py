@@ -25,23 +25,23 @@ def cap_issues(problem: ProblemDocument, settings: Settings) -> list[FieldIssue]
     """Every field of ``problem`` over a server cap (empty when all are within)."""
     issues: list[FieldIssue] = []
     method = problem.method
-    checks: list[tuple[str, Any, float, str]] = [
-        ("method.nodes", getattr(method, "nodes", None), settings.max_nodes, "TRAJOPT_MAX_NODES"),
+    checks: list[tuple[str, float, float, str]] = [
+        ("method.nodes", method.nodes, settings.max_nodes, "TRAJOPT_MAX_NODES"),
         (
             "method.max_iterations",
-            getattr(method, "max_iterations", None),
+            method.max_iterations,
             settings.max_iterations,
             "TRAJOPT_MAX_ITERATIONS",
         ),
         (
             "method.time_limit_s",
-            getattr(method, "time_limit_s", None),
+            method.time_limit_s,
             settings.max_time_limit_s,
             "TRAJOPT_MAX_TIME_LIMIT_S",
         ),
     ]
     for field, value, cap, setting in checks:
-        if isinstance(value, int | float) and value > cap:
+        if value > cap:
             issues.append(_over(field, value, cap, setting))
     zones = len(problem.no_fly_zones)
     if zones > settings.max_no_fly_zones:
