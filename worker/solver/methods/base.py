@@ -3,19 +3,46 @@ the support checks methods share (field issues for features they cannot handle).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypedDict, TypeVar
 
 from app.schemas import FieldIssue, ProblemDocument
 from app.schemas.methods import ScpRunOptions
+from worker.solver.conic import ConicBackend, make_backend
 from worker.solver.problem import EntryProblem
 from worker.solver.scp.history import IterationRecord
-from worker.solver.scp.loop import IterationSink, ScpOutcome, ScpStatus, StopCheck
+from worker.solver.scp.loop import (
+    Budget,
+    IterationSink,
+    ScpMethod,
+    ScpOutcome,
+    ScpStatus,
+    StopCheck,
+    run_scp,
+)
 from worker.solver.verification import OptimizedTrajectory
 
 Options = TypeVar("Options", bound=ScpRunOptions)
+Ref = TypeVar("Ref")
 SupportCheck = Callable[[ProblemDocument], list[FieldIssue]]
+
+FINAL_EXTREMES = (
+    "max_final_latitude",
+    "min_final_latitude",
+    "max_final_longitude",
+    "min_final_longitude",
+)
+"""Objectives on the last node's latitude or longitude, which every method supports."""
+
+MODEL_FEATURES = (
+    "terminal conditions fixed, range, free or soft",
+    "rotating or non-rotating planet",
+    "exponential or US76 atmosphere",
+    "polynomial or tabulated aerodynamics with a scheduled angle of attack",
+)
+"""Features of the problem model that every method supports."""
 
 
 @dataclass
@@ -36,22 +63,58 @@ class MethodResult:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def method_result(
-    outcome: ScpOutcome[Any],
-    trajectory: OptimizedTrajectory | None,
-    objective_terms: dict[str, float],
-    extra: dict[str, Any] | None = None,
+class RunHooks(TypedDict, total=False):
+    """What a caller may hand a method's ``run``: the history sink, the stop check, and a conic
+    backend that replaces the options' one (tests)."""
+
+    on_iteration: IterationSink | None
+    should_stop: StopCheck | None
+    backend: ConicBackend | None
+
+
+class DrivenMethod(ScpMethod[Ref, Any], Protocol):
+    """A method's hooks plus what turns the driver's outcome into a method result."""
+
+    extra: dict[str, Any]
+
+    def trajectory(self, reference: Ref) -> OptimizedTrajectory:
+        """The reference as a trajectory to verify and report."""
+        ...
+
+    def objective_terms(self, outcome: ScpOutcome[Ref]) -> dict[str, float]:
+        """Each objective term's value (SI) on the outcome's trajectory."""
+        ...
+
+
+def run_method(
+    build: Callable[[], DrivenMethod[Ref]], options: ScpRunOptions, hooks: RunHooks
 ) -> MethodResult:
-    """The driver's outcome as a method result (the trajectory only when an iteration ran)."""
+    """Build a method (its set-up counts against the time limit) and run it on the shared driver
+    with the budgets and conic backend of its options."""
+    start = time.perf_counter()
+    method = build()
+    backend = hooks.get("backend") or make_backend(
+        options.conic_backend, fallback=options.fallback_solver
+    )
+    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
+    outcome = run_scp(
+        method,
+        budget,
+        backend,
+        on_iteration=hooks.get("on_iteration"),
+        should_stop=hooks.get("should_stop"),
+        start=start,
+    )
+    ref = outcome.reference
     return MethodResult(
         status=outcome.status,
-        trajectory=trajectory if outcome.history else None,
+        trajectory=method.trajectory(ref) if ref is not None and outcome.history else None,
         history=outcome.history,
         conic_solve_s=outcome.conic_solve_s,
-        objective_terms=objective_terms,
+        objective_terms=method.objective_terms(outcome),
         failure_code=outcome.failure_code,
         failure_message=outcome.failure_message,
-        extra=dict(extra or {}),
+        extra=dict(method.extra),
     )
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from worker.solver.conic import ConicSolution
+
 
 @dataclass
 class IterationRecord:
@@ -32,3 +34,16 @@ class IterationRecord:
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return asdict(self)
+
+
+def solver_fields(solution: ConicSolution) -> dict[str, Any]:
+    """The record fields that describe the conic solve of an iteration (its wall time is set
+    by the driver when the iteration ends)."""
+    return {
+        "conic_status": solution.status.value,
+        "conic_solver": solution.solver,
+        "conic_solve_s": solution.solve_time_s,
+        "conic_setup_s": solution.setup_time_s,
+        "conic_solver_setup_s": solution.clarabel_setup_s,
+        "iteration_wall_s": 0.0,
+    }

@@ -1,7 +1,7 @@
 """Paper 000's energy-domain SCP with post-correction (Jung, Kim, Choi & Lee)."""
 
 from app.schemas.methods import EnergyScpOptions
-from worker.solver.methods.base import MethodInfo, Runner
+from worker.solver.methods.base import MODEL_FEATURES, MethodInfo, Runner
 from worker.solver.methods.energy_scp.support import NAME, OBJECTIVES, check_support
 
 METHOD = MethodInfo(
@@ -13,10 +13,7 @@ METHOD = MethodInfo(
         "energy as independent variable",
         "path limits (heat rate, dynamic pressure, load factor) as radius lower bounds",
         "bank magnitude limit",
-        "terminal conditions fixed, range, free or soft",
-        "rotating or non-rotating planet",
-        "exponential or US76 atmosphere",
-        "polynomial or tabulated aerodynamics with a scheduled angle of attack",
+        *MODEL_FEATURES,
     ),
     objectives=OBJECTIVES,
     options_type=EnergyScpOptions,

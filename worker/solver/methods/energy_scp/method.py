@@ -14,18 +14,19 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any, Unpack
 
 import numpy as np
 
 from app.schemas.methods import EnergyScpOptions
-from worker.solver.conic import ConeProblem, ConicBackend, ConicSolution, ConicStatus, make_backend
+from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
 from worker.solver.dynamics import (
     EnergyDerivatives,
     energy_dynamics,
     energy_rates,
     time_state_from_energy,
 )
-from worker.solver.methods.base import MethodResult, method_result
+from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
@@ -33,17 +34,7 @@ from worker.solver.methods.terminal_pending import terminal_rows
 from worker.solver.models.layout import ENERGY
 from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
-from worker.solver.scp.loop import (
-    VIRTUAL_CONTROL_TOL,
-    Budget,
-    ConicCall,
-    IterationSink,
-    Judgement,
-    Proposal,
-    StartError,
-    StopCheck,
-    run_scp,
-)
+from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import FixedTrustWeight
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
 from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
@@ -86,6 +77,7 @@ class EnergyScp:
         self.next_ed: EnergyDerivatives | None = None
         self.data: SubproblemData | None = None
         self.tr = self.transcription(options.virtual_control == "on")
+        self.extra: dict[str, Any] = {}
 
     def transcription(self, virtual_control: bool) -> EnergyTrapezoid:
         """The trapezoidal SOCP on the current grid, with or without virtual control."""
@@ -111,7 +103,7 @@ class EnergyScp:
             self.r_lower, feasible = radius_lower_bound(p.forces, p.limits, e, 1.0, self.r_ceiling)
             if not np.all(feasible):
                 bad = int(np.argmin(feasible))
-                raise StartError(
+                raise scp.StartError(
                     "path_limits_infeasible",
                     f"no altitude satisfies the path limits at energy {e[bad]:.4f} "
                     f"(node {bad}); raise the limits or change the energy range",
@@ -147,7 +139,7 @@ class EnergyScp:
         return self.tr.build(self.data)
 
     def solve(
-        self, problem: ConeProblem, conic: ConicCall, limit_s: float, deadline: float
+        self, problem: ConeProblem, conic: scp.ConicCall, limit_s: float, deadline: float
     ) -> ConicSolution:
         """One solve; an infeasible one is solved again with virtual control when it is
         ``auto``."""
@@ -169,7 +161,7 @@ class EnergyScp:
         linearization: EnergyDerivatives,
         solution: ConicSolution,
         iteration: int,
-    ) -> Proposal[EnergyIterate]:
+    ) -> scp.Proposal[EnergyIterate]:
         """Unpack the solution and post-correct it (paper 000 eq. 38 and the state update
         algorithm): the step of each (node, state) whose linearization error exceeds the
         threshold is shortened."""
@@ -196,26 +188,45 @@ class EnergyScp:
         record, self.virtual = iteration_record(
             self, iteration, sub, solution, values, lin_err, corrected
         )
-        return Proposal(EnergyIterate(e, x_next, sub.u, e, sub.x, sub.u), record)
+        return scp.Proposal(EnergyIterate(e, x_next, sub.u, e, sub.x, sub.u), record)
 
     def judge(
-        self, reference: EnergyIterate, proposal: Proposal[EnergyIterate]
-    ) -> Judgement[EnergyIterate, EnergyDerivatives]:
+        self, reference: EnergyIterate, proposal: scp.Proposal[EnergyIterate]
+    ) -> scp.Judgement[EnergyIterate, EnergyDerivatives]:
         """Every step is taken; small when no state moved more than its tolerance (eq. 37) on
         a grid that has been used once. Not converged after ``REGRID_AFTER`` iterations, the
         grid is re-spaced evenly in flight time (which resolves the terminal maneuver that a
         grid even in energy crowds into its last intervals)."""
         iteration = proposal.record.iteration
         small = bool(np.all(self.change < self.tol)) and iteration > self.regrid_done
-        verdict: Judgement[EnergyIterate, EnergyDerivatives] = Judgement(
+        verdict: scp.Judgement[EnergyIterate, EnergyDerivatives] = scp.Judgement(
             accepted=True, small=small, virtual_control=self.virtual
         )
-        done = small and self.virtual <= VIRTUAL_CONTROL_TOL
+        done = small and self.virtual <= scp.VIRTUAL_CONTROL_TOL
         if not done and iteration == REGRID_AFTER and self.options.grid != "uniform":
             verdict.reference = self.regrid(proposal.reference)
             self.regrid_done = iteration + 1
             proposal.record.extra["regrid"] = True
         return verdict
+
+    def trajectory(self, reference: EnergyIterate) -> OptimizedTrajectory:
+        """The solution's nodes as a time-form trajectory: V from (r, e), time by the
+        trapezoid of dt/de."""
+        p = self.problem
+        e, x, u = reference.e_solution, reference.x_solution, reference.u_solution
+        ed = energy_dynamics(x, u, e, p.forces, p.omega)
+        y, _ = time_state_from_energy(x, e)
+        dt_de = 1.0 / ed.edot
+        t = np.concatenate([[0.0], np.cumsum(0.5 * (dt_de[1:] + dt_de[:-1]) * np.diff(e))])
+        bank = np.arctan2(u[:, 1], u[:, 0])
+        return OptimizedTrajectory("energy", e, y, t, bank)
+
+    def objective_terms(self, outcome: scp.ScpOutcome[EnergyIterate]) -> dict[str, float]:
+        """The terms as the last iteration recorded them."""
+        if not outcome.history:
+            return {}
+        last = outcome.history[-1].cost_terms
+        return {k.split(":", 1)[1]: v for k, v in last.items() if k.startswith("objective:")}
 
     def regrid(self, ref: EnergyIterate) -> EnergyIterate:
         """``ref`` interpolated onto a grid even in its flight time (the solution keeps its own
@@ -232,38 +243,8 @@ class EnergyScp:
         return EnergyIterate(e_new, x, u, ref.e_solution, ref.x_solution, ref.u_solution)
 
 
-def to_trajectory(problem: EntryProblem, ref: EnergyIterate) -> OptimizedTrajectory:
-    """The solution's nodes as a time-form trajectory: V from (r, e), time by the trapezoid of
-    dt/de."""
-    e, x, u = ref.e_solution, ref.x_solution, ref.u_solution
-    ed = energy_dynamics(x, u, e, problem.forces, problem.omega)
-    y, _ = time_state_from_energy(x, e)
-    dt_de = 1.0 / ed.edot
-    t = np.concatenate([[0.0], np.cumsum(0.5 * (dt_de[1:] + dt_de[:-1]) * np.diff(e))])
-    bank = np.arctan2(u[:, 1], u[:, 0])
-    return OptimizedTrajectory("energy", e, y, t, bank)
-
-
 def run(
-    problem: EntryProblem,
-    options: EnergyScpOptions,
-    *,
-    on_iteration: IterationSink | None = None,
-    should_stop: StopCheck | None = None,
-    backend: ConicBackend | None = None,
+    problem: EntryProblem, options: EnergyScpOptions, **hooks: Unpack[RunHooks]
 ) -> MethodResult:
     """Run paper 000's SCP on ``problem`` with its ``options``."""
-    start = time.perf_counter()
-    method = EnergyScp(problem, options)
-    conic = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
-    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
-    outcome = run_scp(
-        method, budget, conic, on_iteration=on_iteration, should_stop=should_stop, start=start
-    )
-    terms: dict[str, float] = {}
-    if outcome.history:
-        last = outcome.history[-1].cost_terms
-        terms = {k.split(":", 1)[1]: v for k, v in last.items() if k.startswith("objective:")}
-    ref = outcome.reference
-    trajectory = to_trajectory(problem, ref) if ref is not None and outcome.history else None
-    return method_result(outcome, trajectory, terms)
+    return run_method(lambda: EnergyScp(problem, options), options, hooks)

@@ -9,7 +9,7 @@ import numpy as np
 
 from worker.solver.conic import ConicSolution
 from worker.solver.models.layout import ENERGY
-from worker.solver.scp.history import IterationRecord
+from worker.solver.scp.history import IterationRecord, solver_fields
 
 if TYPE_CHECKING:
     from worker.solver.methods.energy_scp.method import EnergyScp
@@ -54,11 +54,6 @@ def iteration_record(
         linearization_error=float(np.max(lin_err)),
         nodes_post_corrected=int(np.count_nonzero(np.any(corrected, axis=1))),
         relaxation_gap=float(np.max(1.0 - np.linalg.norm(sub.u, axis=1))),
-        conic_status=solution.status.value,
-        conic_solver=solution.solver,
-        conic_solve_s=solution.solve_time_s,
-        conic_setup_s=solution.setup_time_s,
-        conic_solver_setup_s=solution.clarabel_setup_s,
-        iteration_wall_s=0.0,
+        **solver_fields(solution),
     )
     return record, vc_norm

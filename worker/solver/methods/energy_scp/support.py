@@ -4,16 +4,18 @@ bounds: refused with a field path and a reason before any work is done."""
 from __future__ import annotations
 
 from app.schemas import FieldIssue, ProblemDocument
-from worker.solver.methods.base import issue, objective_issues, scheduled_alpha_issues
+from worker.solver.methods.base import (
+    FINAL_EXTREMES,
+    issue,
+    objective_issues,
+    scheduled_alpha_issues,
+)
 
 NAME = "energy-scp"
 OBJECTIVES = (
     "min_heat_load",
     "min_time",
-    "max_final_latitude",
-    "min_final_latitude",
-    "max_final_longitude",
-    "min_final_longitude",
+    *FINAL_EXTREMES,
 )
 
 

@@ -2,7 +2,7 @@
 Wang & Zhang)."""
 
 from app.schemas.methods import FohPtrOptions
-from worker.solver.methods.base import MethodInfo, Runner
+from worker.solver.methods.base import MODEL_FEATURES, MethodInfo, Runner
 from worker.solver.methods.foh_ptr.support import NAME, OBJECTIVES, check_support
 
 METHOD = MethodInfo(
@@ -19,10 +19,7 @@ METHOD = MethodInfo(
         "path limits (heat rate, dynamic pressure, load factor), log-transformed",
         "no-fly zones",
         "bank magnitude and bank rate limits",
-        "terminal conditions fixed, range, free or soft",
-        "rotating or non-rotating planet",
-        "exponential or US76 atmosphere",
-        "polynomial or tabulated aerodynamics with a scheduled angle of attack",
+        *MODEL_FEATURES,
     ),
     objectives=OBJECTIVES,
     options_type=FohPtrOptions,

@@ -17,28 +17,20 @@ import math
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass, field
+from typing import Any, Unpack
 
 import numpy as np
 
 from app.schemas.methods import FohPtrOptions
 from worker.solver import side_thread
-from worker.solver.conic import ConeProblem, ConicBackend, ConicSolution, make_backend
+from worker.solver.conic import ConeProblem, ConicSolution
 from worker.solver.dynamics_compiled import compiled_parameters, warm_up
-from worker.solver.methods.base import MethodResult, method_result
+from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
 from worker.solver.methods.terminal_pending import terminal_rows
 from worker.solver.problem import EntryProblem
-from worker.solver.scp.loop import (
-    Budget,
-    ConicCall,
-    IterationSink,
-    Judgement,
-    Proposal,
-    StartError,
-    StopCheck,
-    run_scp,
-)
+from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
 from worker.solver.transcription.foh_subproblem import FohSubproblem, GridLimits, SubproblemData
 from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
@@ -138,7 +130,7 @@ class FohPtr:
             factor=options.trust_factor,
             reversal_cosine=options.trust_reversal_cosine,
         )
-        self.extra: dict[str, float] = {}
+        self.extra: dict[str, Any] = {}
         self.prev_cost: float | None = None
         self.pending: _Pending | None = None
         self.second_order = False  # whether the last subproblem carried the curvature
@@ -154,7 +146,7 @@ class FohPtr:
         try:
             ref = initial_reference(self.problem, self.options.nodes, self.options.initial_bank_deg)
         except InitialGuessError as exc:  # the method cannot start: a failed job, not an error
-            raise StartError("initial_guess", str(exc)) from exc
+            raise scp.StartError("initial_guess", str(exc)) from exc
         self.extra["initial_bank_deg"] = ref.bank_deg
         return FohIterate(ref.z, ref.w, ref.s)
 
@@ -191,7 +183,7 @@ class FohPtr:
         return problem
 
     def solve(
-        self, problem: ConeProblem, conic: ConicCall, limit_s: float, deadline: float
+        self, problem: ConeProblem, conic: scp.ConicCall, limit_s: float, deadline: float
     ) -> ConicSolution:
         """One solve, no retry."""
         return conic(problem, limit_s)
@@ -202,7 +194,7 @@ class FohPtr:
         linearization: Linearization,
         solution: ConicSolution,
         iteration: int,
-    ) -> Proposal[FohIterate]:
+    ) -> scp.Proposal[FohIterate]:
         """Unpack the step, start the candidate's curvature, discretize about the candidate (it
         judges the step) and record the iteration."""
         lin_s = time.perf_counter() - self.it_start
@@ -237,11 +229,11 @@ class FohPtr:
             step=step,
             reversal=self.trust.reversal(step),
         )
-        return Proposal(FohIterate(new.z, new.w, new.s, multipliers, values), record)
+        return scp.Proposal(FohIterate(new.z, new.w, new.s, multipliers, values), record)
 
     def judge(
-        self, reference: FohIterate, proposal: Proposal[FohIterate]
-    ) -> Judgement[FohIterate, Linearization]:
+        self, reference: FohIterate, proposal: scp.Proposal[FohIterate]
+    ) -> scp.Judgement[FohIterate, Linearization]:
         """Reject a step whose propagation is not finite (back to the reference, heavier trust
         weight); else adapt the trust weight to its defect and test it for convergence."""
         pending, record = self.pending, proposal.record
@@ -252,7 +244,7 @@ class FohPtr:
             restored = self.linearize(reference)
             self.trust.rejected()
             record.extra["rejected"] = "the step's propagation left the models' range"
-            return Judgement(accepted=False, linearization=restored)
+            return scp.Judgement(accepted=False, linearization=restored)
         by_state, step_defect = defect(pending.linearization[0], self.scale)
         self.trust.accepted(pending.step, pending.reversal, step_defect)
         record.extra["step_defect"] = step_defect
@@ -267,50 +259,34 @@ class FohPtr:
             and pending.weight <= o.weight_trust_region
             and bool(np.all(by_state <= self.tol_z))
         )
-        return Judgement(
+        return scp.Judgement(
             accepted=True,
             small=small,
             virtual_control=pending.virtual,
             linearization=pending.linearization,
         )
 
+    def trajectory(self, reference: FohIterate) -> OptimizedTrajectory:
+        """The nodes as a time-grid trajectory, with the FOH bank rate for exact bank
+        propagation."""
+        t = np.concatenate([[0.0], np.cumsum(reference.s)])
+        sigma = reference.z.shape[1] - 1
+        return OptimizedTrajectory(
+            "time",
+            t,
+            reference.z[:, :sigma].copy(),
+            t,
+            reference.z[:, sigma].copy(),
+            bank_rate=reference.w.copy(),
+        )
 
-def to_trajectory(reference: FohIterate) -> OptimizedTrajectory:
-    """The nodes as a time-grid trajectory, with the FOH bank rate for exact bank propagation."""
-    t = np.concatenate([[0.0], np.cumsum(reference.s)])
-    sigma = reference.z.shape[1] - 1
-    return OptimizedTrajectory(
-        "time",
-        t,
-        reference.z[:, :sigma].copy(),
-        t,
-        reference.z[:, sigma].copy(),
-        bank_rate=reference.w.copy(),
-    )
+    def objective_terms(self, outcome: scp.ScpOutcome[FohIterate]) -> dict[str, float]:
+        """The terms on the last accepted reference."""
+        return dict(outcome.reference.values) if outcome.reference is not None else {}
 
 
-def run(
-    problem: EntryProblem,
-    options: FohPtrOptions,
-    *,
-    on_iteration: IterationSink | None = None,
-    should_stop: StopCheck | None = None,
-    backend: ConicBackend | None = None,
-) -> MethodResult:
+def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]) -> MethodResult:
     """Run paper 002's SCP on ``problem`` (fixed final time) with its ``options``."""
     if compiled_parameters(problem.forces, problem.omega) is not None:
         warm_up()  # compile or load the kernels before the clock starts (at once when loaded)
-    start = time.perf_counter()
-    method = FohPtr(problem, options)
-    conic = backend or make_backend(options.conic_backend, fallback=options.fallback_solver)
-    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
-    outcome = run_scp(
-        method, budget, conic, on_iteration=on_iteration, should_stop=should_stop, start=start
-    )
-    ref = outcome.reference
-    return method_result(
-        outcome,
-        to_trajectory(ref) if ref is not None else None,
-        dict(ref.values) if ref is not None else {},
-        method.extra,
-    )
+    return run_method(lambda: FohPtr(problem, options), options, hooks)

@@ -9,7 +9,7 @@ import numpy as np
 
 from worker.solver.conic import ConicSolution
 from worker.solver.methods.foh_ptr.linearizer import defect
-from worker.solver.scp.history import IterationRecord
+from worker.solver.scp.history import IterationRecord, solver_fields
 from worker.solver.transcription.foh_subproblem import SubproblemData
 
 if TYPE_CHECKING:
@@ -69,12 +69,7 @@ def iteration_record(
         linearization_error=defect(data, method.scale)[1],
         nodes_post_corrected=0,
         relaxation_gap=0.0,
-        conic_status=solution.status.value,
-        conic_solver=solution.solver,
-        conic_solve_s=solution.solve_time_s,
-        conic_setup_s=solution.setup_time_s,
-        conic_solver_setup_s=solution.clarabel_setup_s,
-        iteration_wall_s=0.0,
+        **solver_fields(solution),
         extra={
             "max_interval_change_s": change_s * sc.time_s,
             "interval_s_min": float(np.min(new.s) * sc.time_s),

@@ -5,16 +5,18 @@ from __future__ import annotations
 
 from app.schemas import FieldIssue, ProblemDocument
 from app.schemas.methods import FohPtrOptions
-from worker.solver.methods.base import issue, objective_issues, scheduled_alpha_issues
+from worker.solver.methods.base import (
+    FINAL_EXTREMES,
+    issue,
+    objective_issues,
+    scheduled_alpha_issues,
+)
 
 NAME = "foh-ptr"
 OBJECTIVES = (
     "max_terminal_velocity",
     "min_heat_load",
-    "max_final_latitude",
-    "min_final_latitude",
-    "max_final_longitude",
-    "min_final_longitude",
+    *FINAL_EXTREMES,
 )
 
 
