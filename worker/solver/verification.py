@@ -17,7 +17,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -27,9 +27,10 @@ from worker.solver.dynamics import time_dynamics
 from worker.solver.path_limits import path_values
 from worker.solver.problem import STATE_NAMES, EntryProblem
 from worker.solver.scalar_rates import time_rates
+from worker.solver.trajectory import Array, OptimizedTrajectory, bank_profile
 
-Array = np.ndarray
-GridKind = Literal["energy", "time"]
+# OptimizedTrajectory now lives in worker.solver.trajectory; importing it from here still works
+# until every importer has moved.
 StopCheck = Callable[[], bool]
 
 STOP_POLL_INTERVAL_S = 0.2
@@ -72,33 +73,6 @@ class VerificationTolerances:
     heading_deg: float = 0.3
     path_limit_relative: float = 0.01
     no_fly_zone_deg: float = 0.05
-
-
-@dataclass
-class OptimizedTrajectory:
-    """The optimizer's nodes in time-form states (nondimensional) with their grid and bank."""
-
-    grid_kind: GridKind
-    grid: Array  # (K,) energy or nondimensional time since the start
-    y: Array  # (K, 6)
-    t: Array  # (K,) nondimensional time since the start
-    bank: Array  # (K,) radians
-    alpha_deg: Array | None = None  # (K,) when alpha is a decision variable
-    bank_rate: Array | None = None  # (K,) d(bank)/dt at the nodes (time grid), first-order hold
-
-
-def bank_profile(traj: OptimizedTrajectory, s: Any) -> float:
-    """Bank angle at grid value ``s``: linear between nodes, or, with ``bank_rate`` on a time grid,
-    the exact integral of the first-order-hold rate from the interval's node (piecewise quadratic).
-    """
-    grid, bank = traj.grid, traj.bank
-    if traj.bank_rate is None or traj.grid_kind != "time":
-        return float(np.interp(s, grid, bank))
-    k = int(np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2))
-    h = float(grid[k + 1] - grid[k])
-    dt = float(np.clip(s - grid[k], 0.0, h))
-    w0, w1 = float(traj.bank_rate[k]), float(traj.bank_rate[k + 1])
-    return float(bank[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
 
 
 def _energy(y: Array) -> Array:

@@ -1,4 +1,4 @@
-"""Backend-neutral result type, the backend protocol, and the factory that builds a backend by name.
+"""Backend-neutral result type and the backend protocol (the factory by name is ``registry``).
 
 The SCP loop talks only to ``ConicBackend``, so the conic solver is a configuration choice.
 """
@@ -16,13 +16,6 @@ from worker.solver.conic.status import ConicStatus
 
 CVXPY_SOLVERS: tuple[str, ...] = ("CLARABEL", "ECOS", "SCS")
 """Solvers reachable through cvxpy that handle second-order cones."""
-
-KNOWN_BACKENDS: tuple[str, ...] = (
-    "clarabel",
-    "cvxpy",
-    *(f"cvxpy:{solver}" for solver in CVXPY_SOLVERS),
-)
-"""Every name ``make_backend`` accepts (``cvxpy`` alone means ``cvxpy:CLARABEL``)."""
 
 
 @dataclass
@@ -57,39 +50,3 @@ class ConicBackend(Protocol):
     def solve(self, problem: ConeProblem, *, time_limit_s: float | None = None) -> ConicSolution:
         """Solve ``problem``, stopping after about ``time_limit_s`` s of solver time if set."""
         ...
-
-
-def _cvxpy_solver_of(name: str) -> str | None:
-    """Return the cvxpy solver a backend name selects, or None if it is not a cvxpy name."""
-    if name == "cvxpy":
-        return "CLARABEL"
-    if name.startswith("cvxpy:"):
-        solver = name.split(":", 1)[1].upper()
-        return solver if solver in CVXPY_SOLVERS else None
-    return None
-
-
-def make_backend(name: str, *, fallback: str | None = None) -> ConicBackend:
-    """Build the backend called ``name``; with ``fallback`` (a cvxpy solver such as "ECOS"), wrap it
-    so NUMERICAL_ERROR or INACCURATE answers are re-solved by ``cvxpy:<fallback>``."""
-    primary = _make_single(name)
-    if fallback is None:
-        return primary
-    fallback_name = fallback if fallback.startswith("cvxpy") else f"cvxpy:{fallback}"
-    from worker.solver.conic.fallback import FallbackBackend
-
-    return FallbackBackend(primary, _make_single(fallback_name))
-
-
-def _make_single(name: str) -> ConicBackend:
-    """Build one unwrapped backend by name, raising ValueError listing the known names."""
-    if name == "clarabel":
-        from worker.solver.conic.clarabel_direct import ClarabelBackend
-
-        return ClarabelBackend()
-    solver = _cvxpy_solver_of(name)
-    if solver is not None:
-        from worker.solver.conic.cvxpy_backend import CvxpyBackend
-
-        return CvxpyBackend(solver=solver)
-    raise ValueError(f"unknown conic backend {name!r}; known: {', '.join(KNOWN_BACKENDS)}")

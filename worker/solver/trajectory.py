@@ -1,0 +1,42 @@
+"""The optimized trajectory every method hands on, and its control profile between the nodes.
+
+A shared type at the bottom of the core: the methods produce it, verification propagates it and
+the result writes it, so it imports nothing of the solver.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+Array = np.ndarray
+GridKind = Literal["energy", "time"]
+
+
+@dataclass
+class OptimizedTrajectory:
+    """The optimizer's nodes in time-form states (nondimensional) with their grid and bank."""
+
+    grid_kind: GridKind
+    grid: Array  # (K,) energy or nondimensional time since the start
+    y: Array  # (K, 6)
+    t: Array  # (K,) nondimensional time since the start
+    bank: Array  # (K,) radians
+    alpha_deg: Array | None = None  # (K,) when alpha is a decision variable
+    bank_rate: Array | None = None  # (K,) d(bank)/dt at the nodes (time grid), first-order hold
+
+
+def bank_profile(traj: OptimizedTrajectory, s: Any) -> float:
+    """Bank angle at grid value ``s``: linear between nodes, or, with ``bank_rate`` on a time grid,
+    the exact integral of the first-order-hold rate from the interval's node (piecewise quadratic).
+    """
+    grid, bank = traj.grid, traj.bank
+    if traj.bank_rate is None or traj.grid_kind != "time":
+        return float(np.interp(s, grid, bank))
+    k = int(np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2))
+    h = float(grid[k + 1] - grid[k])
+    dt = float(np.clip(s - grid[k], 0.0, h))
+    w0, w1 = float(traj.bank_rate[k]), float(traj.bank_rate[k + 1])
+    return float(bank[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
