@@ -17,8 +17,12 @@ from app.schemas import ProblemDocument
 from worker.solver.aerodynamics import aero_from_spec, alpha_schedule_from_spec
 from worker.solver.atmosphere import atmosphere_from_spec
 from worker.solver.forces import VehicleForces
+from worker.solver.geometry import CircleZone
 from worker.solver.path_limits import HeatRateModel, PathLimits
 from worker.solver.units import Scales
+
+# CircleZone now lives in worker.solver.geometry; importing it from here still works until every
+# importer has moved.
 
 TerminalKind = Literal["fixed", "range", "free", "soft"]
 STATE_NAMES = (
@@ -58,23 +62,13 @@ class ObjectiveTerm:
     weight: float
 
 
-@dataclass(frozen=True)
-class CircleZone:
-    """A circular no-fly zone or waypoint on the sphere, angles in radians."""
-
-    latitude: float
-    longitude: float
-    radius: float
-    name: str | None = None
-    order: int = 0
-    metric: str = "great_circle"  # or "lat_lon": sqrt(dlat^2 + dlon^2) (paper 002 eq. 27)
-
-
 @dataclass
 class EntryProblem:
-    """Nondimensional entry problem shared by every method."""
+    """Nondimensional entry problem shared by every method: everything downstream reads of the
+    request, as typed fields (``document`` goes once its last readers have moved to them)."""
 
     document: ProblemDocument
+    name: str | None  # the problem's label, for the result's provenance
     scales: Scales
     forces: VehicleForces
     omega: float
@@ -83,8 +77,10 @@ class EntryProblem:
     bank_max: float
     bank_rate_max: float | None
     y0: np.ndarray  # [r, theta, phi, V, gamma, psi] at the initial time
+    initial_bank: float | None  # radians; None when the request leaves the initial bank free
     t0: float
     terminal: dict[str, TerminalTarget]  # keyed by STATE_NAMES
+    terminal_si: dict[str, TerminalTarget]  # the same in the request's units (m, deg, m/s)
     final_time: float | None  # nondimensional, None when free
     energy_initial: float | None
     energy_final: float | None
@@ -94,13 +90,16 @@ class EntryProblem:
     alpha_optimized: bool = False
 
     def radius(self, altitude_m: float) -> float:
+        """Nondimensional radius of an altitude in metres."""
         return 1.0 + altitude_m / self.scales.radius_m
 
     def altitude_m(self, radius_nd: np.ndarray) -> np.ndarray:
+        """Altitudes in metres of nondimensional radii."""
         return (radius_nd - 1.0) * self.scales.radius_m
 
 
 def _terminal_to_nd(spec: Any, to_nd: Any) -> TerminalTarget:
+    """One terminal condition of the request turned nondimensional by ``to_nd``."""
     kind = spec.kind
     if kind == "fixed":
         return TerminalTarget("fixed", value=to_nd(spec.value))
@@ -111,7 +110,19 @@ def _terminal_to_nd(spec: Any, to_nd: Any) -> TerminalTarget:
     return TerminalTarget("free")
 
 
+def _terminal_as_given(spec: Any) -> TerminalTarget:
+    """One terminal condition kept in the request's units, as the verification reports it."""
+    if spec.kind == "fixed":
+        return TerminalTarget("fixed", value=spec.value)
+    if spec.kind == "range":
+        return TerminalTarget("range", lo=spec.lo, hi=spec.hi)
+    if spec.kind == "soft":
+        return TerminalTarget("soft", value=spec.value, weight=float(spec.weight))
+    return TerminalTarget("free")
+
+
 def _zone_radius_rad(zone: Any, planet_radius_m: float) -> float:
+    """A zone's radius as a central angle: given in degrees, or in km along the surface."""
     if getattr(zone, "radius_deg", None) is not None:
         return math.radians(zone.radius_deg)
     return float(zone.radius_km) * 1000.0 / planet_radius_m
@@ -173,6 +184,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
     terminal = {
         name: _terminal_to_nd(getattr(doc.terminal, name), converters[name]) for name in STATE_NAMES
     }
+    terminal_si = {name: _terminal_as_given(getattr(doc.terminal, name)) for name in STATE_NAMES}
     final_time = None
     if doc.final_time.kind == "fixed":
         final_time = (doc.final_time.value_s - s0.time_s) / scales.time_s
@@ -199,6 +211,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
     ]
     return EntryProblem(
         document=doc,
+        name=doc.name,
         scales=scales,
         forces=forces,
         omega=omega,
@@ -211,8 +224,10 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
             else None
         ),
         y0=y0,
+        initial_bank=math.radians(s0.bank_deg) if s0.bank_deg is not None else None,
         t0=s0.time_s,
         terminal=terminal,
+        terminal_si=terminal_si,
         final_time=final_time,
         energy_initial=energy_initial,
         energy_final=energy_final,

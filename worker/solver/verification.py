@@ -25,7 +25,7 @@ from scipy.integrate import solve_ivp
 from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.dynamics import time_dynamics
 from worker.solver.path_limits import path_values
-from worker.solver.problem import STATE_NAMES, EntryProblem
+from worker.solver.problem import STATE_NAMES, EntryProblem, TerminalTarget
 from worker.solver.scalar_rates import time_rates
 from worker.solver.trajectory import Array, OptimizedTrajectory, bank_profile
 
@@ -77,6 +77,15 @@ class VerificationTolerances:
 
 def _energy(y: Array) -> Array:
     return 1.0 / y[0] - 0.5 * y[3] ** 2
+
+
+def _terminal_error(spec: TerminalTarget, value: float) -> float:
+    """Signed miss of ``value`` from a fixed or soft target, or its distance outside a range."""
+    if spec.kind == "range":
+        assert spec.lo is not None and spec.hi is not None
+        return max(spec.lo - value, value - spec.hi, 0.0)
+    assert spec.value is not None
+    return value - spec.value
 
 
 def _to_si(problem: EntryProblem, y: Array) -> dict[str, float]:
@@ -177,14 +186,11 @@ def verify(
     terminal_vs_target: dict[str, Any] = {}
     hard_ok = True
     for name in STATE_NAMES:
-        spec = problem.document.terminal.__getattribute__(name)
+        spec = problem.terminal_si[name]
         value = final_si[name]
         if spec.kind == "free":
             continue
-        if spec.kind == "range":
-            err = max(spec.lo - value, value - spec.hi, 0.0)
-        else:
-            err = value - spec.value
+        err = _terminal_error(spec, value)
         within = abs(err) <= tol_map[name]
         if spec.kind in ("fixed", "range"):
             hard_ok &= within
