@@ -25,6 +25,7 @@ def test_typed_fields_match_the_request(name: str) -> None:
     assert model.name == doc.name
     bank = doc.initial_state.bank_deg
     assert model.initial_bank == (math.radians(bank) if bank is not None else None)
+    assert model.initial_bank_deg == bank
     for state in STATE_NAMES:
         spec = getattr(doc.terminal, state)
         given = model.terminal_si[state]
@@ -34,12 +35,13 @@ def test_typed_fields_match_the_request(name: str) -> None:
         assert given.hi == getattr(spec, "hi", None)
 
 
-@pytest.mark.parametrize("bank_deg", [None, 0.0, -37.5, 60.0])
+@pytest.mark.parametrize("bank_deg", [None, 0.0, -37.5, -89.3, 60.0])
 def test_initial_bank_in_radians_or_none(bank_deg: float | None) -> None:
     """The initial bank is the request's angle in radians, bit for bit, or None when it is free."""
     raw = copy.deepcopy(get_scenario("rlv-max-terminal-velocity").problem)
     raw["initial_state"]["bank_deg"] = bank_deg
     model = build_problem(ProblemDocument.model_validate(raw))
+    assert model.initial_bank_deg == bank_deg
     if bank_deg is None:
         assert model.initial_bank is None
     else:

@@ -78,6 +78,7 @@ class EntryProblem:
     bank_rate_max: float | None
     y0: np.ndarray  # [r, theta, phi, V, gamma, psi] at the initial time
     initial_bank: float | None  # radians; None when the request leaves the initial bank free
+    initial_bank_deg: float | None  # the same as the request gives it, for what reports degrees
     t0: float
     terminal: dict[str, TerminalTarget]  # keyed by STATE_NAMES
     terminal_si: dict[str, TerminalTarget]  # the same in the request's units (m, deg, m/s)
@@ -225,6 +226,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         ),
         y0=y0,
         initial_bank=math.radians(s0.bank_deg) if s0.bank_deg is not None else None,
+        initial_bank_deg=s0.bank_deg,
         t0=s0.time_s,
         terminal=terminal,
         terminal_si=terminal_si,
