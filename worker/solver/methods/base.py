@@ -22,7 +22,7 @@ from worker.solver.scp.loop import (
     StopCheck,
     run_scp,
 )
-from worker.solver.verification import OptimizedTrajectory
+from worker.solver.trajectory import OptimizedTrajectory
 
 Options = TypeVar("Options", bound=ScpRunOptions)
 Ref = TypeVar("Ref")

@@ -36,9 +36,9 @@ from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import FixedTrustWeight
+from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
 from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
-from worker.solver.verification import OptimizedTrajectory
 
 Array = np.ndarray
 REGRID_AFTER = 2

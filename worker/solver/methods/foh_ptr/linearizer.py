@@ -45,11 +45,9 @@ class Linearizer:
         self.limits = active_limits(problem)
         self.zones = problem.no_fly_zones
         self.margin = 0.0
-        fixed_bank = problem.document.initial_state.bank_deg
+        fixed_bank = problem.initial_bank
         self.initial = (
-            np.r_[problem.y0, math.radians(fixed_bank)]
-            if fixed_bank is not None
-            else (problem.y0.copy())
+            np.r_[problem.y0, fixed_bank] if fixed_bank is not None else problem.y0.copy()
         )
         self.objective: TimeObjective | None = None
         self.windows: list[list[int]] = []

@@ -32,9 +32,9 @@ from worker.solver.methods.terminal_pending import terminal_rows
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
+from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.foh_subproblem import FohSubproblem, GridLimits, SubproblemData
 from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
-from worker.solver.verification import OptimizedTrajectory
 
 Array = np.ndarray
 Linearization = tuple[SubproblemData, Array]
