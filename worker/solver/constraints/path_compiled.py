@@ -1,12 +1,12 @@
 """Compiled (numba) path-limit rows and between-node smooth maxima of the time-domain SCP.
 
 ``log_rows_kernel`` is ``log_path.log_path_rows`` for the force models that
-``dynamics_compiled`` covers (exponential atmosphere, polynomial CL/CD, alpha constant or on its
-velocity schedule): per point ln(p / p_max) and its partials in r and V for heat rate (paper 000
-eq. 12 with paper 004's alpha factor), dynamic pressure and load factor. ``smooth_max_kernel`` is
-the arithmetic of ``between_nodes.smooth_max_rows`` for any constraint. Both replace a few dozen
-numpy calls on arrays of a few hundred points per SCP iteration; the numpy forms stay the
-reference (``tests/unit/test_path_compiled.py`` holds them equal).
+``models.bank_state_compiled`` covers (exponential atmosphere, polynomial CL/CD, alpha constant
+or on its velocity schedule): per point ln(p / p_max) and its partials in r and V for heat rate
+(paper 000 eq. 12 with paper 004's alpha factor), dynamic pressure and load factor.
+``smooth_max_kernel`` is the arithmetic of ``between_nodes.smooth_max_rows`` for any constraint.
+Both replace a few dozen numpy calls on arrays of a few hundred points per SCP iteration; the
+numpy forms stay the reference (``tests/unit/test_path_compiled.py`` holds them equal).
 """
 
 from __future__ import annotations
@@ -16,7 +16,13 @@ import math
 import numpy as np
 from numba import njit
 
-from worker.solver.dynamics_compiled import NAUG, NZ, aero_terms, compiled_parameters
+from worker.solver.models.bank_state_compiled import (
+    AUGMENTED_COLUMNS,
+    N,
+    aero_terms,
+    compiled_parameters,
+)
+from worker.solver.polynomial import horner
 from worker.solver.problem import EntryProblem
 
 Array = np.ndarray
@@ -64,7 +70,7 @@ def log_rows_kernel(r: Array, v: Array, lp: Array, fp: Array) -> tuple[Array, Ar
     g = np.empty((n_pts, m))
     g_r = np.empty((n_pts, m))
     g_v = np.empty((n_pts, m))
-    vs, kb = fp[1], fp[2]  # speed unit and ballistic factor (dynamics_compiled's layout)
+    vs, kb = fp[1], fp[2]  # speed unit and ballistic factor (``compiled_parameters``' layout)
     nqa = int(lp[_NQA])
     for k in range(n_pts):
         rk, vk = r[k], v[k]
@@ -72,11 +78,8 @@ def log_rows_kernel(r: Array, v: Array, lp: Array, fp: Array) -> tuple[Array, Ar
         col = 0
         if lp[_HEAT] == 1.0:
             qa, qa_a = 1.0, 0.0
-            if nqa > 0:  # Horner, lowest order first (path_limits.HeatRateModel.alpha_factor)
-                qa, qa_a = lp[_QA + nqa - 1], 0.0
-                for i in range(_QA + nqa - 2, _QA - 1, -1):
-                    qa_a = qa_a * alpha + qa
-                    qa = qa * alpha + lp[i]
+            if nqa > 0:  # lowest order first (path_limits.HeatRateModel.alpha_factor)
+                qa, qa_a = horner(lp, _QA, nqa, alpha)
             g[k, col] = (
                 lp[_LN_KQ]
                 + lp[_NRHO] * math.log(rho)
@@ -148,11 +151,11 @@ def smooth_max_kernel(
 
 def warm_up(forces: Array) -> None:
     """Compile (or load from the cache) both kernels on a one-point case with every limit and a
-    three-term alpha factor; ``forces``: ``dynamics_compiled.compiled_parameters``' layout.
-    Called by ``dynamics_compiled.warm_up``."""
+    three-term alpha factor; ``forces``: ``models.bank_state_compiled.compiled_parameters``'
+    layout. Called by ``models.bank_state_sweeps.warm_up``."""
     limits = np.zeros(_QA + 3)
     limits[[_HEAT, _QBAR, _LOAD, _NQA, _QA]] = [1.0, 1.0, 1.0, 3.0, 1.0]
     point = np.array([1.015])
     g, g_r, _ = log_rows_kernel(point, np.array([0.9]), limits, forces)
-    aug = np.zeros((1, 1, NZ, NAUG))
+    aug = np.zeros((1, 1, N, AUGMENTED_COLUMNS))
     smooth_max_kernel(g[None], np.array([0, 3]), np.stack([g_r[None]] * 2), aug, np.ones(3))
