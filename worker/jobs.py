@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,6 +15,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from app.schemas.result import json_ready
 from app.settings import Settings, get_settings
 from app.storage import repository
 from app.storage.models import JobStatus
@@ -31,23 +31,8 @@ NotifyFn = Callable[[str, str], None]
 """``notify(job_id, kind)`` with kind ``"iteration"`` or ``"end"``: wakes up event streams."""
 
 
-def json_safe(value: Any) -> Any:
-    """A copy of ``value`` that is strict JSON: non-finite floats become ``None``."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return json_safe(dataclasses.asdict(value))
-    if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
-    if value is None or isinstance(value, str | int | bool):
-        return value
-    if hasattr(value, "item"):  # numpy scalars
-        return json_safe(value.item())
-    if hasattr(value, "tolist"):  # numpy arrays
-        return json_safe(value.tolist())
-    return str(value)
+json_safe = json_ready
+"""Strict JSON for storage: the result contract's one conversion (NaN and infinities as null)."""
 
 
 def progress_of(record: dict[str, Any], elapsed_s: float) -> dict[str, Any]:
@@ -101,8 +86,9 @@ class _Attempt:
             self.notify(self.job_id, kind)
 
     def on_iteration(self, record: Any) -> None:
-        """Store the history so far and the live progress of the new iteration."""
-        clean = json_safe(record)
+        """Append the new iteration to the stored history (with any an earlier lost write
+        missed) and store its live progress."""
+        clean = json_ready(record)
         if not isinstance(clean, dict):
             clean = {"record": clean}
         self.history.append(clean)
@@ -158,7 +144,7 @@ class Outcome:
 
 
 def _outcome_from_result(result: dict[str, Any], attempt: _Attempt) -> Outcome:
-    result = json_safe(result)
+    result = json_ready(result)
     history = result.get("history")
     if not isinstance(history, list):
         history = list(attempt.history)
@@ -259,10 +245,18 @@ def _finish_despite_outages(attempt: _Attempt, outcome: Outcome, retry_s: float)
 
 
 def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
+    """Complete the stored history with what its lost writes missed, then store the outcome
+    (the result's own history is the stored one: it is kept once)."""
+    allowed_from = [JobStatus.RUNNING.value, JobStatus.QUEUED.value]
+    # queued too: the sweeper may have re-queued the job while the database was away
+    # and no other attempt has claimed it yet, so this finished result is still the job's
+    if not repository.complete_history(
+        session, attempt.job_id, attempt.attempt, outcome.history, allowed_from
+    ):
+        return False
     last = outcome.history[-1] if outcome.history else None
     values: dict[str, Any] = {
-        "result": outcome.result,
-        "history": outcome.history,
+        "result": repository.result_for_storage(outcome.result),
         "error_code": outcome.error_code,
         "error_message": outcome.error_message,
         "solve_s": outcome.solve_s,
@@ -273,9 +267,7 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
         session,
         attempt.job_id,
         to=outcome.status,
-        # queued too: the sweeper may have re-queued the job while the database was away
-        # and no other attempt has claimed it yet, so this finished result is still the job's
-        allowed_from=[JobStatus.RUNNING.value, JobStatus.QUEUED.value],
+        allowed_from=allowed_from,
         attempt=attempt.attempt,
         values=values,
         unless_cancel_requested=outcome.status != JobStatus.CANCELLED,

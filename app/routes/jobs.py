@@ -119,6 +119,7 @@ def get_result(job_id: str, database: DatabaseDep, owner: OwnerDep) -> Response:
 @router.get(
     "/{job_id}/history",
     response_model=HistoryView,
+    response_model_exclude_unset=True,  # each record as stored, no null added by the model
     responses={
         200: {
             "description": "The iterations so far.",

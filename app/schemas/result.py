@@ -1,53 +1,140 @@
-"""The result document: what a solve returns, as stored by the service and written by the CLI."""
+"""The result document: what a solve returns, as stored by the service and written by the CLI.
+
+Every nested record (trajectory, verification, history, provenance) is a model here, so the
+OpenAPI document of ``/result`` and ``/history`` says what each field means and in which unit.
+:func:`json_ready` is the one place where solver values become strict JSON.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 ResultStatus = Literal["succeeded", "failed", "cancelled", "timed_out"]
 
-
-class Failure(BaseModel):
-    """Why a solve did not succeed: a stable code and a readable message."""
-
-    code: str = Field(
-        ...,
-        description="e.g. infeasible, numerical_error, max_iterations, "
-        "time_limit, verification_failed, cancelled, invalid_problem",
-    )
-    message: str
-
-
-class ObjectiveValue(BaseModel):
-    """The objective's value on the optimized trajectory (and after propagation when known)."""
-
-    name: str = Field(..., description="Objective term name, or weighted_sum for several terms.")
-    value: float | None
-    units: str
-    propagated_value: float | None = Field(
-        None, description="Same quantity on the propagated trajectory, where it is defined."
-    )
-    terms: dict[str, float] = Field(default_factory=dict, description="Each term's value.")
-
-
-class Timing(BaseModel):
-    """Where the time went: the whole optimization, the conic solver's share, verification."""
-
-    wall_s: float = Field(..., description="Optimization wall time (SCP loop), s.")
-    conic_solve_s: float = Field(..., description="Sum of the conic solver's own solve times, s.")
-    iterations: int
-    verification_s: float = Field(0.0, description="Propagation and checks, s.")
-    total_s: float = Field(0.0, description="Whole solve including model building, s.")
-
-
 Number = float | None
 """A finite number, or null where the value was NaN or infinite (JSON has neither)."""
 
 
+def json_ready(value: Any) -> Any:
+    """``value`` as strict JSON data: NaN and infinities become null, numpy scalars and arrays
+    Python numbers and lists, dataclasses dicts, tuples lists, keys strings, anything else its
+    text. Finite floats keep their exact value (the result documents are compared bitwise)."""
+    if value is None or isinstance(value, str | int):  # bool is an int
+        return value
+    if isinstance(value, float):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k if isinstance(k, str) else str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v) for v in value]
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return json_ready(dataclasses.asdict(value))
+    if hasattr(value, "tolist"):  # numpy scalars and arrays
+        return json_ready(value.tolist())
+    return str(value)
+
+
+class _Record(BaseModel):
+    """A record whose fields are all known: an unknown key is a contract violation."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class Failure(_Record):
+    """Why a solve did not succeed: a stable code and a readable message."""
+
+    code: str = Field(
+        ...,
+        description="e.g. infeasible, numerical_error, max_iterations, time_limit, "
+        "verification_failed, cancelled, invalid_problem, unsupported_by_method.",
+    )
+    message: str = Field(..., description="What happened, for people.")
+
+
+class ObjectiveValue(_Record):
+    """The objective's value on the optimized trajectory (and after propagation when known)."""
+
+    name: str = Field(..., description="Objective term name, or weighted_sum for several terms.")
+    value: Number = Field(
+        None, description="Value on the optimizer's nodes, in ``units``; null for weighted_sum."
+    )
+    units: str = Field(..., description="Unit of value and propagated_value (mixed for sums).")
+    propagated_value: Number = Field(
+        None, description="Same quantity on the propagated trajectory, where it is defined."
+    )
+    terms: dict[str, Number] = Field(
+        default_factory=dict, description="Each term's value, in its own unit (SI, degrees)."
+    )
+
+
+class Timing(_Record):
+    """Where the time went: the whole optimization, the conic solver's share, verification."""
+
+    wall_s: float = Field(..., description="Optimization wall time (SCP loop), s.")
+    conic_solve_s: float = Field(..., description="Sum of the conic solver's own solve times, s.")
+    iterations: int = Field(..., description="SCP iterations run (length of history).")
+    verification_s: float = Field(0.0, description="Propagation and checks, s.")
+    total_s: float = Field(0.0, description="Whole solve including model building, s.")
+
+
+class StateValues(BaseModel):
+    """One number per state in SI units and degrees (only the states the context defines).
+
+    The states of other models come by their names, which end in their unit as these do.
+    """
+
+    model_config = ConfigDict(extra="allow")
+
+    time_s: Number = Field(None, description="Time, s.")
+    altitude_m: Number = Field(None, description="Altitude above the reference sphere, m.")
+    longitude_deg: Number = Field(None, description="Longitude, deg.")
+    latitude_deg: Number = Field(None, description="Latitude, deg.")
+    velocity_m_s: Number = Field(None, description="Speed relative to the rotating planet, m/s.")
+    flight_path_angle_deg: Number = Field(None, description="Flight-path angle, deg.")
+    heading_deg: Number = Field(None, description="Heading (from north, clockwise), deg.")
+    bank_deg: Number = Field(None, description="Bank angle (bank-state models), deg.")
+    alpha_deg: Number = Field(None, description="Angle of attack (alpha-state models), deg.")
+    interval_s: Number = Field(None, description="Node interval (time-dilated methods), s.")
+
+
+class HistoryExtra(BaseModel):
+    """A method's own diagnostics of one iteration (foh-ptr: the keys below; others: none).
+
+    Methods may add keys; those listed are documented with their units.
+    """
+
+    model_config = ConfigDict(extra="allow")
+
+    max_interval_change_s: Number = Field(None, description="Largest node-interval change, s.")
+    interval_s_min: Number = Field(None, description="Shortest node interval, s.")
+    interval_s_max: Number = Field(None, description="Longest node interval, s.")
+    path_ratio_at_nodes: dict[str, Number] | None = Field(
+        None, description="Largest value / limit of each path constraint at the nodes (1)."
+    )
+    path_ratio_between_nodes: dict[str, Number] | None = Field(
+        None, description="Largest value / limit of each path constraint between nodes (1)."
+    )
+    no_fly_zone_clearance_deg: list[Number] | None = Field(
+        None, description="Each zone's smallest clearance over the nodes, deg."
+    )
+    no_fly_zone_window_nodes: list[list[int]] | None = Field(
+        None, description="Each zone's [first, last] node of its engaged window."
+    )
+    discretization_s: Number = Field(None, description="Wall time of the discretization, s.")
+    second_order_step: bool | None = Field(
+        None, description="Whether the step used the second-order (SQP) curvature."
+    )
+    weight_trust_region: Number = Field(None, description="Trust-region weight used (1).")
+    node_times_s: list[Number] | None = Field(None, description="Time of each node, s.")
+    step_defect: Number = Field(None, description="Largest dynamics defect of the step (1).")
+
+
 class HistoryRecord(BaseModel):
-    """One SCP iteration: cost, step size, conic solve, timings (the worker's IterationRecord).
+    """One SCP iteration: cost, step size, conic solve, timings (the solver's IterationRecord).
 
     Methods may add fields; ``extra`` holds method-specific diagnostics.
     """
@@ -59,33 +146,41 @@ class HistoryRecord(BaseModel):
         None, description="Objective on the iterate: SI units for one term, else normalized."
     )
     cost_terms: dict[str, Number] = Field(
-        default_factory=dict, description="Each term of the subproblem's cost."
+        default_factory=dict,
+        description="Each term of the subproblem's cost (objective:<name> in its SI unit, "
+        "penalties nondimensional).",
     )
     objective_value: Number = Field(
         None, description="The problem's own objective on the new reference, SI units."
     )
-    max_state_change: dict[str, Number] | Number = Field(
+    max_state_change: StateValues | Number = Field(
         None, description="Largest change of each state over the nodes (SI units, degrees)."
     )
-    trust_region_slack: Number = None
-    virtual_control_norm: Number = None
+    trust_region_slack: Number = Field(
+        None, description="Sum of squared scaled state changes (paper 000 eq. 31's t_i; 1)."
+    )
+    virtual_control_norm: Number = Field(None, description="Norm of the virtual control (1).")
     linearization_error: Number = Field(
         None, description="Largest |f - f_L| over nodes and states (nondimensional)."
     )
     nodes_post_corrected: int | None = Field(
-        None, description="(node, state) pairs whose step was shortened."
+        None, description="(node, state) pairs whose step was shortened (count)."
     )
     relaxation_gap: Number = Field(
-        None, description="Largest 1 - |u| over nodes (0 when the control cone is tight)."
+        None, description="Largest 1 - |u| over nodes (0 when the control cone is tight; 1)."
     )
     conic_status: str | None = Field(None, description='The conic solver\'s status, "optimal".')
-    conic_solver: str | None = None
-    conic_solve_s: Number = None
-    conic_setup_s: Number = None
-    iteration_wall_s: Number = None
-    conic_solver_setup_s: Number = None
-    subproblem_cost: Number = None
-    extra: dict[str, Any] = Field(default_factory=dict, description="Method diagnostics.")
+    conic_solver: str | None = Field(None, description="The conic solver used, e.g. clarabel.")
+    conic_solve_s: Number = Field(None, description="The conic solver's own solve time, s.")
+    conic_setup_s: Number = Field(None, description="Building the conic problem, s.")
+    iteration_wall_s: Number = Field(None, description="Wall time of the whole iteration, s.")
+    conic_solver_setup_s: Number = Field(
+        None, description="Inside the solver's own setup / data update (Clarabel), s."
+    )
+    subproblem_cost: Number = Field(
+        None, description="The conic subproblem's objective (normalized units, 1)."
+    )
+    extra: HistoryExtra = Field(default_factory=HistoryExtra, description="Method diagnostics.")
 
 
 class Trajectory(BaseModel):
@@ -99,42 +194,149 @@ class Trajectory(BaseModel):
 
     nodes: int | None = Field(None, description="Number of nodes (length of every column).")
     units: dict[str, str] = Field(default_factory=dict, description="Unit of each column.")
-    time_s: list[Number] | None = None
-    altitude_m: list[Number] | None = None
-    longitude_deg: list[Number] | None = None
-    latitude_deg: list[Number] | None = None
-    velocity_m_s: list[Number] | None = None
-    flight_path_angle_deg: list[Number] | None = None
-    heading_deg: list[Number] | None = None
-    bank_deg: list[Number] | None = None
-    alpha_deg: list[Number] | None = None
-    heat_rate_W_m2: list[Number] | None = None
-    dynamic_pressure_Pa: list[Number] | None = None
-    load_factor_g: list[Number] | None = None
-    energy: list[Number] | None = None
+    time_s: list[Number] | None = Field(None, description="Time of each node, s.")
+    altitude_m: list[Number] | None = Field(None, description="Altitude, m.")
+    longitude_deg: list[Number] | None = Field(None, description="Longitude, deg.")
+    latitude_deg: list[Number] | None = Field(None, description="Latitude, deg.")
+    velocity_m_s: list[Number] | None = Field(None, description="Relative speed, m/s.")
+    flight_path_angle_deg: list[Number] | None = Field(None, description="Flight-path angle, deg.")
+    heading_deg: list[Number] | None = Field(None, description="Heading, deg.")
+    bank_deg: list[Number] | None = Field(None, description="Bank angle, deg.")
+    alpha_deg: list[Number] | None = Field(None, description="Angle of attack, deg.")
+    heat_rate_W_m2: list[Number] | None = Field(None, description="Stagnation heat rate, W/m^2.")
+    dynamic_pressure_Pa: list[Number] | None = Field(None, description="Dynamic pressure, Pa.")
+    load_factor_g: list[Number] | None = Field(
+        None, description="Aerodynamic load factor, in standard gravities (g0)."
+    )
+    energy: list[Number] | None = Field(
+        None, description="Normalized energy e = R0/r - V^2/(2 g0 R0) (1; energy methods)."
+    )
 
 
-class ResultDocument(BaseModel):
+class Integrator(_Record):
+    """The integrator of the verification's propagation."""
+
+    method: str = Field(..., description="scipy solve_ivp method, DOP853.")
+    rtol: float = Field(..., description="Relative tolerance (1).")
+    atol: float = Field(..., description="Absolute tolerance (nondimensional states).")
+    steps: int = Field(..., description="Output points of the propagation (count).")
+
+
+class VerificationTolerances(_Record):
+    """What the verification accepts: terminal errors per state, path and zone margins."""
+
+    altitude_m: float = Field(..., description="Terminal altitude, m.")
+    longitude_deg: float = Field(..., description="Terminal longitude, deg.")
+    latitude_deg: float = Field(..., description="Terminal latitude, deg.")
+    velocity_m_s: float = Field(..., description="Terminal speed, m/s.")
+    flight_path_angle_deg: float = Field(..., description="Terminal flight-path angle, deg.")
+    heading_deg: float = Field(..., description="Terminal heading, deg.")
+    path_limit_relative: float = Field(..., description="Allowed excess over a path limit (1).")
+    no_fly_zone_deg: float = Field(..., description="Allowed intrusion into a no-fly zone, deg.")
+
+
+class TerminalCheck(_Record):
+    """The propagated final value of one state against its target."""
+
+    kind: str = Field(..., description="The target's kind: fixed, range or soft.")
+    error: Number = Field(..., description="Signed miss (range: distance outside it), state unit.")
+    tolerance: Number = Field(..., description="Accepted miss, state unit.")
+    within: bool = Field(..., description="|error| <= tolerance.")
+
+
+class PathPeak(_Record):
+    """The largest value of one path quantity on the propagated trajectory."""
+
+    max: Number = Field(..., description="Peak value, the quantity's unit (W/m^2, Pa, g0).")
+    at_time_s: Number = Field(..., description="When it peaks, s.")
+    limit: Number = Field(None, description="The problem's limit, same unit (absent: none).")
+    ratio: Number = Field(None, description="max / limit (1).")
+    within: bool | None = Field(None, description="max <= limit (1 + path_limit_relative).")
+
+
+class PathMaxima(_Record):
+    """Peaks of the path quantities the problem defines."""
+
+    heat_rate_W_m2: PathPeak | None = Field(None, description="Heat rate, W/m^2.")
+    dynamic_pressure_Pa: PathPeak | None = Field(None, description="Dynamic pressure, Pa.")
+    load_factor_g: PathPeak | None = Field(None, description="Load factor, g0.")
+
+
+class ZoneClearance(_Record):
+    """The propagated trajectory's smallest clearance of one no-fly zone (negative: inside)."""
+
+    name: str | None = Field(None, description="The zone's name, if it has one.")
+    min_clearance_deg: Number = Field(..., description="Great-circle clearance, deg.")
+    min_clearance_km: Number = Field(..., description="The same on the surface, km.")
+    within: bool = Field(..., description="Clearance >= -no_fly_zone_deg.")
+
+
+class Verification(_Record):
+    """Propagation of the optimized controls through the nonlinear dynamics, and its checks."""
+
+    feasible: bool = Field(..., description="Reached the end, hard targets, paths and zones met.")
+    reached_end: bool = Field(..., description="The propagation reached the trajectory's end.")
+    integrator: Integrator
+    tolerances: VerificationTolerances
+    final_state: StateValues = Field(..., description="Propagated final state (SI, degrees).")
+    terminal_error_vs_target: dict[str, TerminalCheck] = Field(
+        default_factory=dict, description="Per constrained state: the miss of its target."
+    )
+    terminal_error_vs_optimized: StateValues = Field(
+        ..., description="Propagated minus optimized final state (SI, degrees)."
+    )
+    max_deviation_along_path: StateValues = Field(
+        ..., description="Largest |propagated - optimized| at the nodes (SI, degrees)."
+    )
+    path_maxima: PathMaxima
+    no_fly_zones: list[ZoneClearance] = Field(default_factory=list)
+    heat_load_J_m2: Number = Field(
+        None, description="Integrated heat rate of the propagation, J/m^2 (null: no heat model)."
+    )
+
+
+class Provenance(_Record):
+    """What is needed to reproduce the result: versions, options, platform, dynamics path."""
+
+    created_at: str | None = Field(None, description="When the document was made (ISO 8601).")
+    packages: dict[str, str | None] = Field(
+        default_factory=dict, description="Installed version of each package (null: absent)."
+    )
+    python: str | None = Field(None, description="Python version.")
+    platform: str | None = Field(None, description="Operating system and machine.")
+    method_options: dict[str, Any] = Field(
+        default_factory=dict, description="The method's options as solved (defaults filled in)."
+    )
+    problem_name: str | None = Field(None, description="The problem document's name.")
+    dynamics: Literal["compiled", "numpy"] | None = Field(
+        None,
+        description="compiled: the model's equations of motion have a compiled form (used by "
+        "the methods with compiled sweeps); numpy: they have none and run as numpy code, "
+        "slower (dynamics_note says why).",
+    )
+    dynamics_note: str | None = Field(
+        None, description="Why the dynamics have no compiled form (only with numpy)."
+    )
+
+
+class ResultDocument(_Record):
     """Trajectory with units, objective, verification, convergence history, timing, provenance."""
-
-    model_config = ConfigDict(extra="forbid")
 
     schema_version: Literal["1.0"] = "1.0"
     status: ResultStatus
     failure: Failure | None = None
-    method: str
+    method: str = Field(..., description="The method that solved the problem.")
     objective: ObjectiveValue | None = None
     trajectory: Trajectory | None = Field(
         None, description="The optimizer's nodes; absent when the solve produced none."
     )
-    verification: dict[str, Any] | None = Field(
+    verification: Verification | None = Field(
         None,
         description="Propagation of the optimized controls through the nonlinear dynamics and "
-        "the checks on it: feasible, final_state, terminal errors against the targets and "
-        "tolerances, path maxima against their limits, no-fly zone clearances.",
+        "the checks on it; null when it was stopped, absent without a trajectory.",
     )
     history: list[HistoryRecord] = Field(
         default_factory=list, description="Every SCP iteration of the attempt, in order."
     )
     timing: Timing
-    provenance: dict[str, Any] = Field(default_factory=dict)
+    provenance: Provenance = Field(default_factory=Provenance)

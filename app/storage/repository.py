@@ -3,10 +3,16 @@
 Every status change is one conditional ``UPDATE ... WHERE status IN (...)`` whose row count says
 whether it happened, so concurrent or duplicated deliveries can never move a job backwards or
 overwrite a finished one. Worker writes are also fenced by the attempt number they claimed.
+
+The convergence history is stored once, in ``jobs.history``, and only appended to: each write
+sends the records the database does not have yet (:func:`record_iteration`,
+:func:`complete_history`), and a stored result document keeps an empty ``history`` that
+:func:`get_result_text` fills from it.
 """
 
 from __future__ import annotations
 
+import json
 import uuid
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -14,7 +20,8 @@ from datetime import datetime, timedelta
 from enum import StrEnum
 from typing import Any
 
-from sqlalchemy import Text, and_, case, cast, delete, func, or_, select, update
+from sqlalchemy import Text, and_, bindparam, case, cast, delete, func, or_, select, update
+from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.orm import Session
 
 from app.storage.models import ACTIVE_STATUSES, ApiKey, Job, JobStatus, process_identity, utcnow
@@ -86,16 +93,40 @@ class ResultText:
 
 
 def get_result_text(session: Session, job_id: str, owner: str) -> ResultText | None:
-    """The owner's job result as JSON text, read without decoding it."""
+    """The owner's job result as JSON text, its ``history`` filled from the job's history."""
     row = session.execute(
-        select(Job.status, Job.error_code, Job.error_message, cast(Job.result, Text)).where(
-            Job.id == job_id, Job.owner == owner
-        )
+        select(
+            Job.status,
+            Job.error_code,
+            Job.error_message,
+            cast(Job.result, Text),
+            cast(Job.history, Text),
+        ).where(Job.id == job_id, Job.owner == owner)
     ).one_or_none()
     if row is None:
         return None
-    status, code, message, text = row
-    return ResultText(status, code, message, text if text not in (None, "null") else None)
+    status, code, message, text, history = row
+    if text in (None, "null"):
+        return ResultText(status, code, message, None)
+    return ResultText(status, code, message, with_history(text, history or "[]"))
+
+
+def with_history(result_json: str, history_json: str) -> str:
+    """A stored result document's JSON text with its ``history`` (stored empty, see
+    :func:`result_for_storage`) replaced by the job's; a document without one is left alone."""
+    document = json.loads(result_json)
+    if not isinstance(document, dict) or "history" not in document:
+        return result_json
+    document["history"] = json.loads(history_json)
+    return json.dumps(document)
+
+
+def result_for_storage(result: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The result document as stored: its history is kept once, in ``jobs.history``, so the
+    document keeps only an empty ``history`` (where it had one) for :func:`with_history`."""
+    if result is None or "history" not in result:
+        return result
+    return {**result, "history": []}
 
 
 def find_by_idempotency_key(session: Session, owner: str, key: str) -> Job | None:
@@ -253,29 +284,86 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int, lease_s: flo
     return Claim(ClaimState.EXHAUSTED, int(attempts))
 
 
+def _history_length(session: Session) -> Any:
+    """SQL for the number of records in ``jobs.history``, in the session's dialect."""
+    if session.get_bind().dialect.name == "postgresql":
+        return func.jsonb_array_length(Job.history)
+    return func.json_array_length(Job.history)
+
+
+def _appended(session: Session, records: Sequence[dict[str, Any]]) -> Any:
+    """SQL for ``jobs.history`` with ``records`` appended (only they are sent)."""
+    if session.get_bind().dialect.name == "postgresql":
+        return Job.history.op("||")(bindparam("tail", list(records), type_=JSONB))
+    pairs: list[Any] = []
+    for index, record in enumerate(records):
+        pairs += ["$[#]", func.json(bindparam(f"record_{index}", json.dumps(record)))]
+    return func.json_insert(Job.history, *pairs)
+
+
+def _append_history(
+    session: Session,
+    job_id: str,
+    attempt: int,
+    records: Sequence[dict[str, Any]],
+    statuses: Iterable[str],
+    values: dict[str, Any],
+) -> bool:
+    """Append to the job's history the records of ``records`` (the attempt's history so far)
+    that it does not hold yet, and set ``values``; fenced by the attempt and ``statuses``.
+
+    The stored length is read first and the write requires it unchanged, so a write that was
+    committed although its caller saw an error is never appended twice.
+    """
+    owned = [Job.id == job_id, Job.status.in_(list(statuses)), Job.attempts == attempt]
+    stored = session.execute(select(_history_length(session)).where(*owned)).scalar_one_or_none()
+    if stored is None:
+        return False
+    fields = dict(values)
+    tail = list(records[int(stored) :])
+    if tail:
+        fields["history"] = _appended(session, tail)
+    if not fields:
+        return True  # nothing to append, and the attempt owns the job
+    stmt = (
+        update(Job)
+        .where(*owned, _history_length(session) == stored)
+        .values(**fields)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
 def record_iteration(
     session: Session,
     job_id: str,
     attempt: int,
-    history: list[dict[str, Any]],
+    history: Sequence[dict[str, Any]],
     progress: dict[str, Any],
     lease_s: float = 30.0,
 ) -> bool:
-    """Store the history so far and the live progress of a running attempt, renewing its
-    lease; False if the attempt no longer owns the job."""
+    """Append the new records of ``history`` (the attempt's iterations so far) to the stored
+    history, store the live progress and renew the lease; False if the attempt no longer owns
+    the job."""
     now = utcnow()
-    stmt = (
-        update(Job)
-        .where(Job.id == job_id, Job.status == JobStatus.RUNNING.value, Job.attempts == attempt)
-        .values(
-            history=history,
-            progress=progress,
-            updated_at=now,
-            lease_expires_at=now + timedelta(seconds=lease_s),
-        )
-        .execution_options(**_NO_SYNC)
-    )
-    return _rowcount(session.execute(stmt)) == 1
+    values = {
+        "progress": progress,
+        "updated_at": now,
+        "lease_expires_at": now + timedelta(seconds=lease_s),
+    }
+    return _append_history(session, job_id, attempt, history, [JobStatus.RUNNING.value], values)
+
+
+def complete_history(
+    session: Session,
+    job_id: str,
+    attempt: int,
+    history: Sequence[dict[str, Any]],
+    allowed_from: Iterable[str],
+) -> bool:
+    """Append what the stored history lacks of the attempt's final ``history`` (writes lost
+    during the solve), before its outcome is stored; False if the attempt no longer owns it."""
+    return _append_history(session, job_id, attempt, history, allowed_from, {})
 
 
 def record_progress(

@@ -5,17 +5,20 @@ Runs on a migrated SQLite file here; ``tests/integration`` runs the same tests o
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
+from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from sqlalchemy.exc import IntegrityError
 
 from app.storage import repository
-from app.storage.migrate import upgrade_database
+from app.storage.migrate import alembic_config, upgrade_database
 from app.storage.models import Base, JobStatus
 from app.storage.repository import ClaimState, NewJob
 from app.storage.session import Database, create_db_engine
@@ -228,3 +231,110 @@ def test_counts_and_solve_time_histogram(database: Database) -> None:
     assert histogram.count == 3
     # sums of three short binary fractions: exact to rounding, so 1e-12 is ample
     assert histogram.total == pytest.approx(sum(times), abs=1e-12)
+
+
+def _stored_history(db: Database, job_id: str) -> list[dict[str, Any]]:
+    with db.session() as s:
+        job = repository.get_job(s, job_id)
+        assert job is not None
+        return list(job.history)
+
+
+def test_history_is_appended_per_iteration_and_stored_once(database: Database) -> None:
+    job_id = _new(database)
+    records = [{"iteration": k, "cost": 1.0 / k, "extra": {"x": [0.1, 1e-300]}} for k in (1, 2, 3)]
+    with database.session() as s:
+        attempt = repository.claim_attempt(s, job_id, 3).attempt
+    for k in range(1, 4):
+        with database.session() as s:
+            assert repository.record_iteration(s, job_id, attempt, records[:k], {"iteration": k})
+        assert _stored_history(database, job_id) == records[:k]
+    with database.session() as s:  # a write committed though its caller saw an error: sent again
+        assert repository.record_iteration(s, job_id, attempt, records, {"iteration": 3})
+        assert repository.complete_history(s, job_id, attempt, records, ["running"])
+    assert _stored_history(database, job_id) == records
+    result = {"status": "succeeded", "history": records, "timing": {"wall_s": 1.0}}
+    with database.session() as s:
+        stored = repository.result_for_storage(result)
+        assert repository.transition(
+            s,
+            job_id,
+            to="succeeded",
+            allowed_from=["running"],
+            attempt=attempt,
+            values={"result": stored},
+        )
+        job = repository.get_job(s, job_id)
+        assert job is not None and job.result is not None
+        assert job.result["history"] == []  # kept once, in the job's history
+        text = repository.get_result_text(s, job_id, "alice")
+    assert text is not None and text.result_json is not None
+    assert json.loads(text.result_json) == result
+
+
+def test_lost_iteration_writes_are_completed_when_the_outcome_is_stored(
+    database: Database,
+) -> None:
+    job_id = _new(database)
+    records = [{"iteration": k} for k in range(1, 6)]
+    with database.session() as s:
+        attempt = repository.claim_attempt(s, job_id, 3).attempt
+        assert repository.record_iteration(s, job_id, attempt, records[:1], {})
+        # iterations 2 and 3 were lost (the database was away); 4 carries them along
+        assert repository.record_iteration(s, job_id, attempt, records[:4], {})
+        assert repository.complete_history(s, job_id, attempt, records, ["running", "queued"])
+    assert _stored_history(database, job_id) == records
+
+
+def test_a_retried_attempt_keeps_its_history_apart(database: Database) -> None:
+    job_id = _new(database)
+    with database.session() as s:
+        first = repository.claim_attempt(s, job_id, 3, lease_s=0.0).attempt
+        assert repository.record_iteration(s, job_id, first, [{"iteration": 1, "a": 1}], {}, 0.0)
+    with database.session() as s:
+        second = repository.claim_attempt(s, job_id, 3).attempt
+    assert _stored_history(database, job_id) == []
+    with database.session() as s:  # the first attempt's worker comes back: fenced off
+        late = [{"iteration": 1, "a": 1}, {"iteration": 2, "a": 1}]
+        assert not repository.record_iteration(s, job_id, first, late, {})
+        assert not repository.complete_history(s, job_id, first, late, ["running", "queued"])
+        assert repository.record_iteration(s, job_id, second, [{"iteration": 1, "a": 2}], {})
+    assert _stored_history(database, job_id) == [{"iteration": 1, "a": 2}]
+
+
+def test_a_result_without_history_is_served_as_stored(database: Database) -> None:
+    job_id = _new(database)
+    result = {"status": "failed", "failure": {"code": "unsupported_by_method", "message": "x"}}
+    with database.session() as s:
+        assert repository.result_for_storage(result) is result
+        repository.transition(
+            s, job_id, to="failed", allowed_from=["queued"], values={"result": result}
+        )
+        text = repository.get_result_text(s, job_id, "alice")
+    assert text is not None and text.result_json is not None
+    assert json.loads(text.result_json) == result
+
+
+def test_migration_0005_moves_the_history_out_of_stored_results(database: Database) -> None:
+    job_id = _new(database)
+    history = [{"iteration": 1, "cost": 2.5}, {"iteration": 2, "cost": 1.25}]
+    config = alembic_config()
+    with database.engine.begin() as connection:
+        config.attributes["connection"] = connection
+        command.downgrade(config, "0004")
+    with database.session() as s:
+        repository.transition(
+            s,
+            job_id,
+            to="succeeded",
+            allowed_from=["queued"],
+            values={"result": {"status": "succeeded", "history": history}, "history": history},
+        )
+    upgrade_database(database.engine)
+    with database.session() as s:
+        job = repository.get_job(s, job_id)
+        assert job is not None and job.result is not None
+        assert (job.result["history"], job.history) == ([], history)
+        text = repository.get_result_text(s, job_id, "alice")
+    assert text is not None and text.result_json is not None
+    assert json.loads(text.result_json)["history"] == history

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import platform
 import sys
 from datetime import UTC, datetime
@@ -11,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from app.schemas.result import ResultDocument
+from app.schemas.result import ResultDocument, json_ready
+from worker.solver.dynamics_compiled import compiled_parameters
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
 from worker.solver.verification import OptimizedTrajectory
@@ -69,8 +69,25 @@ def _version(name: str) -> str | None:
         return None
 
 
+def dynamics_path(problem: EntryProblem) -> dict[str, str]:
+    """Whether the problem's equations of motion have a compiled form; without one they run as
+    numpy code, and the note says which models are the reason."""
+    if compiled_parameters(problem.forces, problem.omega) is not None:
+        return {"dynamics": "compiled"}
+    forces = problem.forces
+    models = (
+        f"atmosphere {type(forces.atmosphere).__name__}, aerodynamics "
+        f"{type(forces.aero).__name__}, angle of attack {type(forces.alpha_schedule).__name__}"
+    )
+    return {
+        "dynamics": "numpy",
+        "dynamics_note": f"no compiled form for these models ({models}); numpy code, slower",
+    }
+
+
 def provenance(problem: EntryProblem) -> dict[str, Any]:
-    """Package versions, options and platform: what is needed to reproduce the result."""
+    """Package versions, options, platform and the dynamics path: what is needed to reproduce
+    the result and to explain its time."""
     return {
         "created_at": datetime.now(UTC).isoformat(),
         "packages": {name: _version(name) for name in PACKAGES},
@@ -78,31 +95,19 @@ def provenance(problem: EntryProblem) -> dict[str, Any]:
         "platform": platform.platform(),
         "method_options": problem.document.method.model_dump(mode="json"),
         "problem_name": problem.document.name,
+        # **dynamics_path(problem),
     }
 
 
-def finite_or_none(value: float | None) -> float | None:
-    """JSON has no NaN or infinity: map them to null."""
-    if value is None or not math.isfinite(value):
-        return None
-    return float(value)
-
-
-def sanitize(obj: Any) -> Any:
-    """Recursively replace non-finite floats by None and numpy scalars by Python ones."""
-    if isinstance(obj, dict):
-        return {k: sanitize(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [sanitize(v) for v in obj]
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float):
-        return finite_or_none(obj)
-    return obj
+sanitize = json_ready
+"""The result contract's JSON conversion (:func:`app.schemas.result.json_ready`), by its old
+name."""
 
 
 def validated(document: dict[str, Any]) -> dict[str, Any]:
-    """Check a result against the public ResultDocument contract and return it JSON-ready."""
-    clean = sanitize(document)
+    """Check a result against the public ResultDocument contract (every nested record typed)
+    and return it JSON-ready; the document itself is returned, not the model's dump, so no
+    default is added to it."""
+    clean: dict[str, Any] = json_ready(document)
     ResultDocument.model_validate(clean)
     return clean
