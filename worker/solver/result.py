@@ -95,7 +95,7 @@ def provenance(problem: EntryProblem) -> dict[str, Any]:
         "platform": platform.platform(),
         "method_options": problem.document.method.model_dump(mode="json"),
         "problem_name": problem.document.name,
-        # **dynamics_path(problem),
+        **dynamics_path(problem),
     }
 
 
