@@ -6,6 +6,7 @@ the outcome mapping are the real code on a real SQLite database.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Callable
@@ -229,3 +230,16 @@ def test_a_job_whose_workers_keep_dying_ends_worker_lost(
 def test_json_safe_replaces_non_finite_numbers() -> None:
     value = {"a": [1.0, math.nan, math.inf], "b": (1, "x"), "c": None}
     assert json_safe(value) == {"a": [1.0, None, None], "b": [1, "x"], "c": None}
+
+
+def test_the_history_is_stored_once_and_the_result_served_with_it(
+    settings: Settings, database: Database
+) -> None:
+    job_id = _submit(database)
+    assert execute_job(job_id, settings=settings, solve=scripted(3)) == "succeeded"
+    job = _job(database, job_id)
+    assert job.result is not None and job.result["history"] == []
+    with database.session() as s:
+        text = repository.get_result_text(s, job_id, "default")
+    assert text is not None and text.result_json is not None
+    assert json.loads(text.result_json)["history"] == [_record(k) for k in (1, 2, 3)]
