@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from worker.solver.constraints.path_compiled import smooth_max_kernel
+from worker.solver.transcription.foh_data import InnerRows
 from worker.solver.transcription.foh_exact import IntervalSamples
-from worker.solver.transcription.foh_subproblem import InnerRows
 
 Array = np.ndarray
 

@@ -19,8 +19,8 @@ from worker.solver.constraints.path_compiled import log_rows_kernel
 from worker.solver.forces import ForceTerms
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
+from worker.solver.transcription.foh_data import InnerRows
 from worker.solver.transcription.foh_exact import IntervalSamples
-from worker.solver.transcription.foh_subproblem import InnerRows
 
 Array = np.ndarray
 

@@ -17,8 +17,8 @@ import numpy as np
 
 from worker.solver.constraints.between_nodes import smooth_max_rows
 from worker.solver.problem import CircleZone
+from worker.solver.transcription.foh_data import InnerRows
 from worker.solver.transcription.foh_exact import IntervalSamples
-from worker.solver.transcription.foh_subproblem import InnerRows
 
 SMOOTH_WIDTH_RAD = float(np.radians(0.005))
 """Smoothing width of the between-node zone rows (central angle, rad): conservative by at most

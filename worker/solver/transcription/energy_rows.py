@@ -1,0 +1,133 @@
+"""The row blocks of the energy-domain subproblem (paper 000 Problem 2, eq. 29-36), each
+declared once.
+
+Equalities: the trapezoidal dynamics on the scaled deviations (eq. 30, plus the virtual control
+nu when enabled), the initial state and the fixed terminal states. Nonnegative rows: the radius
+above its path-limit bound (eq. 33), u1 >= cos sigma_max (eq. 34), the soft and range terminal
+rows and |nu| <= mu. Second-order cones: |u| <= 1 at every node (eq. 35).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from worker.solver.transcription.rows import RowBlock, Term
+from worker.solver.transcription.terminal import range_block, soft_block
+
+if TYPE_CHECKING:
+    from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
+
+Array = np.ndarray
+
+
+def _radius_lower(d: SubproblemData) -> Array:
+    """The path-limit bound on the radius (present whenever the pattern has path rows)."""
+    assert d.radius_lower is not None
+    return d.radius_lower
+
+
+def _last_node(d: SubproblemData) -> Array:
+    """The reference's last node."""
+    return d.x_ref[-1]
+
+
+def dynamics_block(tr: EnergyTrapezoid) -> RowBlock[SubproblemData]:
+    """Rows nx i + j: S_j dx_{i+1,j} - S_j dx_{i,j} - h_i/2 (A_i S dx_i + A_{i+1} S dx_{i+1}
+    + B_i u_i + B_{i+1} u_{i+1}) [- nu_i,j] = the trapezoid's defect of the reference; the
+    step h follows the current grid."""
+    N, nx = tr.N, tr.nx
+    S = tr.S
+    eye_s = np.eye(nx)[None, :, :] * S[None, :, None]
+    neg_eye_s = -eye_s
+    row = (nx * np.arange(N)[:, None] + np.arange(nx)[None, :])[:, :, None]
+
+    def half() -> Array:
+        return 0.5 * tr.h[:, None, None]
+
+    # dA_i[j,k] = -delta_jk S_j - h/2 A_i[j,k] S_k ;  dA_{i+1} = +delta S - h/2 A_{i+1} S
+    terms: list[Term[SubproblemData]] = [
+        Term(row, tr.col_x[:-1][:, None, :], update=lambda d: neg_eye_s - half() * d.A[:-1] * S),
+        Term(row, tr.col_x[1:][:, None, :], update=lambda d: eye_s - half() * d.A[1:] * S),
+        Term(row, tr.col_u[:-1][:, None, :], update=lambda d: -half() * d.B[:-1]),
+        Term(row, tr.col_u[1:][:, None, :], update=lambda d: -half() * d.B[1:]),
+    ]
+    if tr.virtual_control:
+        terms.append(Term(np.arange(N * nx), tr.col_nu.ravel(), -1.0))
+
+    def rhs(d: SubproblemData) -> Array:
+        h = tr.h
+        c = d.f - np.einsum("kjm,km->kj", d.B, d.u_ref)
+        return (-(d.x_ref[1:] - d.x_ref[:-1]) + 0.5 * h[:, None] * (c[:-1] + c[1:])).ravel()
+
+    return RowBlock("dynamics", "zero", N * nx, terms, rhs=rhs)
+
+
+def row_blocks(tr: EnergyTrapezoid) -> list[RowBlock[SubproblemData]]:
+    """Every row block of the subproblem, in row order."""
+    K, N, nx, S = tr.K, tr.N, tr.nx, tr.S
+    fixed = [t for t in tr.terminal if t.kind == "fixed"]
+    states = np.array([t.state for t in fixed], dtype=np.int64)
+    values = np.array([t.value for t in fixed], dtype=float)
+    blocks = [
+        dynamics_block(tr),
+        RowBlock(
+            "initial",
+            "zero",
+            nx,
+            (Term(np.arange(nx), tr.col_x[0], 1.0),),
+            rhs=lambda d: (d.x0 - d.x_ref[0]) / S,
+        ),
+        RowBlock(
+            "terminal_fixed",
+            "zero",
+            len(fixed),
+            (Term(np.arange(len(fixed)), tr.col_x[-1, states], 1.0),),
+            rhs=lambda d: (values - d.x_ref[-1, states]) / S[states],
+        ),
+    ]
+    if tr.path_limits:  # r >= r_min: -S_r dx_r <= r_bar - r_min
+        blocks.append(
+            RowBlock(
+                "path",
+                "nonneg",
+                K,
+                (Term(np.arange(K), tr.col_x[:, 0], -S[0]),),
+                rhs=lambda d: d.x_ref[:, 0] - _radius_lower(d),
+            )
+        )
+    blocks.append(  # u1 >= cos sigma_max
+        RowBlock("bank", "nonneg", K, (Term(np.arange(K), tr.col_u[:, 0], -1.0),), b=-tr.bank_cos)
+    )
+    ranges = [t for t in tr.terminal if t.kind == "range"]
+    blocks.append(soft_block(tr.soft, tr.col_x[-1], tr.col_soft, S, _last_node))
+    blocks.append(range_block(ranges, tr.col_x[-1], S, _last_node))
+    if tr.virtual_control:  # -mu <= nu <= mu
+        rows = np.arange(N * nx)
+        nu, mu = tr.col_nu.ravel(), tr.col_mu.ravel()
+        blocks.append(
+            RowBlock(
+                "virtual_control",
+                "nonneg",
+                2 * N * nx,
+                (
+                    Term(rows, nu, 1.0),
+                    Term(rows, mu, -1.0),
+                    Term(N * nx + rows, nu, -1.0),
+                    Term(N * nx + rows, mu, -1.0),
+                ),
+            )
+        )
+    cone = 3 * np.arange(K)[:, None] + np.array([1, 2])[None, :]  # (1, u1, u2) in the cone
+    blocks.append(
+        RowBlock(
+            "control_norm",
+            "soc",
+            3 * K,
+            (Term(cone, tr.col_u, -1.0),),
+            b=np.tile([1.0, 0.0, 0.0], K),
+            soc_dim=3,
+        )
+    )
+    return blocks

@@ -1,0 +1,89 @@
+"""The objective of the time-domain subproblem (paper 002 Problem 2): its P pattern and the
+values of P and q.
+
+The quadratic part is diagonal on (dz, dw, ds) — the penalized trust region (eq. 28) and the
+separable penalties of the objective — plus, for the SQP step, one convexified Lagrangian Hessian
+block per interval on (dz_k, dw_k, dw_{k+1}[, ds_k]) with the longitude left out (it enters no
+rate, paper 000 eq. 1, so its row and column are zero). The linear part holds the objective's
+gradients and the weights of the soft-terminal slacks and of the virtual-control buffers.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+
+from worker.solver.conic import SparseAssembler
+from worker.solver.transcription.foh_data import SubproblemData
+from worker.solver.transcription.foh_hessian import BlockLayout
+
+if TYPE_CHECKING:
+    from worker.solver.transcription.foh_subproblem import FohSubproblem
+
+Array = np.ndarray
+
+
+class FohCost:
+    """P on a pattern fixed at construction (its diagonal, then the curvature blocks; overlaps
+    summed) and the per-iteration values of P and q."""
+
+    def __init__(self, sub: FohSubproblem) -> None:
+        self.sub = sub
+        nb = sub.block_cols.shape[1]
+        longitude = sub.state_index[1]
+        keep = np.array([j for j in range(nb) if j != longitude], dtype=np.int64)
+        upper = np.triu_indices(keep.size)
+        self.curvature_layout = BlockLayout(
+            keep=keep,
+            scale=np.ascontiguousarray(sub.block_scale[keep], dtype=np.float64),
+            rows=upper[0].astype(np.int64),
+            cols=upper[1].astype(np.int64),
+        )
+        self.n_upper = upper[0].size
+        self.n_quad = sub.col_s.size + sub.K * (sub.nz + 1)  # the diagonal covers z, w and s
+        diag = np.arange(self.n_quad)
+        p_rows, p_cols = [diag], [diag]
+        if sub.hessian_blocks:  # one upper triangle per interval block
+            curved_cols = sub.block_cols[:, keep]
+            a = curved_cols[:, upper[0]].ravel()
+            b = curved_cols[:, upper[1]].ravel()
+            p_rows.append(np.minimum(a, b))
+            p_cols.append(np.maximum(a, b))
+        self.P_asm = SparseAssembler(
+            np.concatenate(p_rows), np.concatenate(p_cols), (sub.n, sub.n), upper_triangular=True
+        )
+
+    def diagonal(self, d: SubproblemData) -> Array:
+        """P's triplet values with the curvature blocks left zero: 2 w_tr (plus the separable
+        penalties' 2 Q Dz^2 on z), and 2 w_tr2 on the interval lengths."""
+        sub = self.sub
+        K, nz = sub.K, sub.nz
+        n_blocks = sub.N * self.n_upper if sub.hessian_blocks else 0
+        p = np.zeros(self.n_quad + n_blocks)
+        pz = p[: K * nz].reshape(K, nz)
+        pz[:] = 2.0 * sub.w_tr + 2.0 * d.quad_z * sub.Dz[None, :] ** 2
+        p[K * nz : K * nz + K] = 2.0 * sub.w_tr
+        p[K * nz + K : self.n_quad] = 2.0 * sub.w_tr2
+        return p
+
+    def P(self, p: Array, curvature: Array | None) -> sp.csc_matrix:
+        """P from the diagonal values ``p`` and the curvature blocks' values (None: none)."""
+        if self.sub.hessian_blocks and curvature is not None:
+            p[self.n_quad :] = curvature
+        return self.P_asm.assemble(p)
+
+    def q(self, d: SubproblemData) -> Array:
+        """The linear cost: gradients of the objective and of its penalties on (dz, ds), the
+        soft-terminal weights and the buffer weight."""
+        sub = self.sub
+        Dz = sub.Dz[None, :]
+        values = {
+            "z": d.grad_z * Dz + 2.0 * d.quad_z * (d.z - d.quad_center) * Dz,
+            "soft": sub.soft_weights,
+            "buffer": sub.w_buf,
+        }
+        if sub.adaptive:
+            values["s"] = d.grad_s * sub.Ds
+        return sub.columns.vector(values)

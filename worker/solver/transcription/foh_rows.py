@@ -1,0 +1,230 @@
+"""The row blocks of the time-domain subproblem (paper 002 Problem 2), each declared once.
+
+Equalities: the stitched interval dynamics E dz_{k+1} = Phi dz_k + B- dw_k + B+ dw_{k+1} + S ds_k
++ (x_prop - z_bar_{k+1}) (eq. 24, rows divided by the state scale), the initial state, the fixed
+terminal states and, on the adaptive grid, sum s_k = t_f (eq. 12). Nonnegative rows:
+|sigma| <= sigma_max, |w| <= w_max, the linearized log path limits (eq. 25-26), the linearized
+no-fly zones (eq. 27), the between-node rows, their L1 buffers, Delta_min <= s_k <= Delta_max with
+|s_k - s_bar_k| <= DeltaT_max (eq. 11), then the soft and range terminal rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from worker.solver.transcription.foh_data import SubproblemData
+from worker.solver.transcription.rows import RowBlock, Term
+from worker.solver.transcription.terminal import range_block, soft_block
+
+if TYPE_CHECKING:
+    from worker.solver.transcription.foh_subproblem import FohSubproblem
+
+Array = np.ndarray
+Block = RowBlock[SubproblemData]
+
+
+def _inner(d: SubproblemData) -> Array:
+    """The between-node coefficients of ``d`` (present whenever the pattern has such rows)."""
+    assert d.inner is not None
+    return d.inner.c
+
+
+def _inner_g(d: SubproblemData) -> Array:
+    """The between-node constraint values of ``d``."""
+    assert d.inner is not None
+    return d.inner.g
+
+
+def equality_blocks(sub: FohSubproblem) -> list[Block]:
+    """Dynamics, initial state, fixed terminal states and (adaptive grid) the final time."""
+    N, nz, nb = sub.N, sub.nz, sub.block_cols.shape[1]
+    inv = 1.0 / sub.Dz
+    dyn_scale = -sub.block_scale[None, :] * inv[:, None]  # (nz, nb): rows / Dz_i
+    e_scale = sub.Dz[None, :] * inv[:, None]
+    node_row = nz * np.arange(N)[:, None] + np.arange(nz)[None, :]  # row nz k + i
+    if sub.identity_e:  # exact FOH: E = I, only its diagonal is in the pattern
+        e_term = Term[SubproblemData](node_row, sub.col_z[1:], 1.0)
+    else:
+        e_term = Term(
+            node_row[:, :, None],
+            sub.col_z[1:][:, None, :],
+            np.broadcast_to(np.eye(nz), (N, nz, nz)),
+            update=lambda d: None if d.maps.E is None else d.maps.E * e_scale,
+        )
+    blocks = [
+        Block(
+            "dynamics",
+            "zero",
+            N * nz,
+            (
+                e_term,
+                Term(  # [Phi | B- | B+ (| S)] on the interval's variables
+                    node_row[:, :, None],
+                    sub.block_cols[:, None, :],
+                    update=lambda d: d.maps.jacobian[:, :, :nb] * dyn_scale,
+                ),
+            ),
+            rhs=lambda d: ((d.maps.x_prop - d.z[1:]) * inv[None, :]).ravel(),
+        ),
+    ]
+    ni = sub.n_initial
+    blocks.append(
+        Block(
+            "initial",
+            "zero",
+            ni,
+            (Term(np.arange(ni), sub.col_z[0, :ni], 1.0),),
+            rhs=lambda d: (d.initial - d.z[0, :ni]) * inv[:ni],
+        )
+    )
+    fixed = [t for t in sub.terminal if t.kind == "fixed"]
+    states = np.array([t.state for t in fixed], dtype=np.int64)
+    values = np.array([t.value for t in fixed], dtype=float)
+    blocks.append(
+        Block(
+            "terminal_fixed",
+            "zero",
+            len(fixed),
+            (Term(np.arange(len(fixed)), sub.col_z[-1, states], 1.0),),
+            rhs=lambda d: (values - d.z[-1, states]) * inv[states],
+        )
+    )
+    if sub.grid is not None:
+        final_time = sub.grid.final_time
+        blocks.append(
+            Block(
+                "final_time",
+                "zero",
+                1,
+                (Term(np.zeros(N, dtype=np.int64), sub.col_s, sub.Ds),),
+                rhs=lambda d: final_time - float(np.sum(d.s)),
+            )
+        )
+    return blocks
+
+
+def bound_block(
+    name: str, cols: Array, scale: float, bound: float, value: Callable[[SubproblemData], Array]
+) -> Block:
+    """|v| <= bound at every node for the variable on ``cols`` (scaled by ``scale``; ``value(d)``
+    its reference): rows scale dv <= bound - v_bar, then -scale dv <= bound + v_bar."""
+    K = cols.size
+    rows = np.arange(K)
+
+    def rhs(d: SubproblemData) -> Array:
+        v = value(d)
+        return np.concatenate([bound - v, bound + v])
+
+    return Block(
+        name, "nonneg", 2 * K, (Term(rows, cols, scale), Term(K + rows, cols, -scale)), rhs=rhs
+    )
+
+
+def inequality_blocks(sub: FohSubproblem) -> list[Block]:
+    """Bank and bank-rate bounds, path, zone and between-node rows (each with its L1 buffer when
+    weighted), the buffers' signs, the interval bounds and the soft and range terminal rows."""
+    K, N, Dz, nb = sub.K, sub.N, sub.Dz, sub.block_cols.shape[1]
+    r, th, ph, v, sigma = sub.state_index
+    col_z, col_buf = sub.col_z, sub.col_buf
+    blocks = [
+        bound_block("bank", col_z[:, sigma], Dz[sigma], sub.bank_max, lambda d: d.z[:, sigma])
+    ]
+    if sub.bank_rate_max is not None:
+        blocks.append(bound_block("bank_rate", sub.col_w, sub.Dw, sub.bank_rate_max, lambda d: d.w))
+    buffered = 0  # the buffers cover the path, zone and between-node rows in that order
+
+    def buffer(size: int) -> tuple[Term[SubproblemData], ...]:
+        nonlocal buffered
+        if not sub.n_buffer:
+            return ()
+        cols = col_buf[buffered : buffered + size]
+        buffered += size
+        return (Term(np.arange(size), cols, -1.0),)
+
+    if sub.n_limits:  # row m K + k: limit m at node k
+        rows = np.arange(K)[:, None] + K * np.arange(sub.n_limits)[None, :]
+        blocks.append(
+            Block(
+                "path",
+                "nonneg",
+                sub.n_limits * K,
+                (
+                    Term(rows, col_z[:, r, None], update=lambda d: d.path_gr * Dz[r]),
+                    Term(rows, col_z[:, v, None], update=lambda d: d.path_gv * Dz[v]),
+                    *buffer(sub.n_limits * K),
+                ),
+                rhs=lambda d: -d.path_g.T.ravel(),
+            )
+        )
+    if sub.n_zones:  # row z K + k: zone z at node k
+        rows = K * np.arange(sub.n_zones)[:, None] + np.arange(K)[None, :]
+        blocks.append(
+            Block(
+                "zone",
+                "nonneg",
+                sub.n_zones * K,
+                (
+                    Term(rows, col_z[None, :, ph], update=lambda d: -d.zone_clat * Dz[ph]),
+                    Term(rows, col_z[None, :, th], update=lambda d: -d.zone_clon * Dz[th]),
+                    *buffer(sub.n_zones * K),
+                ),
+                rhs=lambda d: d.zone_c.ravel(),
+            )
+        )
+    if sub.n_inner:  # row m N + k: constraint m over interval k, on the interval's variables
+        rows = np.arange(N)[:, None] + N * np.arange(sub.n_inner)[None, :]
+        scale = sub.block_scale
+        blocks.append(
+            Block(
+                "between_nodes",
+                "nonneg",
+                sub.n_inner * N,
+                (
+                    Term(
+                        rows[:, :, None],
+                        sub.block_cols[:, None, :],
+                        update=lambda d: _inner(d)[:, :, :nb] * scale,
+                    ),
+                    *buffer(sub.n_inner * N),
+                ),
+                rhs=lambda d: -_inner_g(d).T.ravel(),
+            )
+        )
+    if sub.n_buffer:
+        rows = np.arange(sub.n_buffer)
+        blocks.append(Block("buffers", "nonneg", sub.n_buffer, (Term(rows, col_buf, -1.0),)))
+    if sub.grid is not None:
+        g = sub.grid
+        rows = np.arange(N)
+        blocks.append(
+            Block(
+                "interval",
+                "nonneg",
+                2 * N,
+                (Term(rows, sub.col_s, sub.Ds), Term(N + rows, sub.col_s, -sub.Ds)),
+                rhs=lambda d: np.concatenate(
+                    [
+                        np.minimum(g.delta_max - d.s, g.delta_trust),
+                        np.minimum(d.s - g.delta_min, g.delta_trust),
+                    ]
+                ),
+            )
+        )
+    last = col_z[-1]
+    ranges = [t for t in sub.terminal if t.kind == "range"]
+    blocks.append(soft_block(sub.soft, last, sub.col_soft, Dz, _last_node))
+    blocks.append(range_block(ranges, last, Dz, _last_node))
+    return blocks
+
+
+def _last_node(d: SubproblemData) -> Array:
+    """The reference's last node."""
+    return d.z[-1]
+
+
+def row_blocks(sub: FohSubproblem) -> list[Block]:
+    """Every row block of the subproblem, in row order."""
+    return equality_blocks(sub) + inequality_blocks(sub)
