@@ -2,9 +2,9 @@
 
 Time form: state y = [r, theta, phi, V, gamma, psi] (radius, longitude, latitude, planet-relative
 speed, flight-path angle, heading clockwise from north), control u = [cos(sigma), sin(sigma)]
-scaling the lift (so a convex relaxation of u can be used, paper 000 eq. 20-22). Equations as in
-paper 000 eq. 1 / Lu 2014 (time form), all nondimensional (units.Scales). Analytic Jacobians,
-vectorized over nodes, complex-safe for complex-step tests.
+scaling the lift (so a convex relaxation of u can be used, paper 000 eq. 20-22). The equations
+and their analytic partials are ``models.eom`` (paper 000 eq. 1, all nondimensional), laid out
+here as arrays over nodes; complex-safe for complex-step tests.
 
 Energy form: independent variable e = 1/r - V^2/2 (paper 000 eq. 7) and state
 x = [r, theta, phi, gamma, psi], with the exact V = sqrt(2 (1/r - e)) (not the approximation of
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from worker.solver.forces import ForceTerms, VehicleForces
+from worker.solver.models import eom
 
 Array = np.ndarray
 
@@ -62,112 +63,64 @@ def _time_dynamics(
     *,
     jacobians: bool = True,
 ) -> tuple[TimeDerivatives, Array | None]:
-    """``time_dynamics`` and r^3 (None without Jacobians), which the energy form needs again."""
+    """``time_dynamics`` and r^3 (None without Jacobians), which the energy form needs again.
+
+    Rates and partials are ``models.eom`` in the numpy form (divisions, rotation terms added one
+    by one); this function lays them out as f (N, 6), A (N, 6, 6) and B (N, 6, 2).
+    """
     r, v, ga, ps, ph = y[:, R], y[:, V], y[:, GA], y[:, PS], y[:, PH]
     u1, u2 = u[:, 0], u[:, 1]
     ft = forces.terms(r, v, alpha_deg)
-    L, D = ft.lift, ft.drag
-    sg, cg, sp, cp, sf, cf = np.sin(ga), np.cos(ga), np.sin(ps), np.cos(ps), np.sin(ph), np.cos(ph)
-    tf = sf / cf
-    tg = sg / cg
-    rotating = omega != 0.0
-    w2 = omega * omega
+    k = eom.kinematics(r, ph, v, ga, ps, False)
+    rt = eom.rates(k, r, v, ft.lift, ft.drag, u1, u2, omega, False, False)
     n = y.shape[0]
-    f = np.empty((n, 6), dtype=np.result_type(y, u, L))
-    # shared subexpressions (each evaluated exactly as it appears in the formulas below)
-    r2 = r**2
-    vcg = v * cg
-    vsg = v * sg
-    rcf = r * cf
-    vcg_sp = vcg * sp
-    lu1 = L * u1
-    lu2 = L * u2
-    f_th = vcg_sp / rcf
-    f_ph = vcg * cp / r
-    f[:, R] = vsg  # r' = V sin(gamma)
-    f[:, TH] = f_th  # theta' = V cos(gamma) sin(psi) / (r cos(phi))
-    f[:, PH] = f_ph  # phi' = V cos(gamma) cos(psi) / r
-    # The rotation terms (omega != 0) are added last, so a non-rotating planet skips them.
-    # V' = -D - sin(gamma)/r^2 + W^2 r cos(phi) (sin(gamma) cos(phi) - cos(gamma) sin(phi) cos(psi))
-    f_v = -D - sg / r2
-    # gamma' = L u1 / V + (V - 1/(r V)) cos(gamma)/r + 2 W cos(phi) sin(psi)
-    #          + W^2 r cos(phi) (cos(gamma) cos(phi) + sin(gamma) cos(psi) sin(phi)) / V
-    f_ga = lu1 / v + (v - 1.0 / (r * v)) * cg / r
-    # psi' = L u2 / (V cos(gamma)) + V cos(gamma) sin(psi) tan(phi) / r
-    #        - 2 W (tan(gamma) cos(psi) cos(phi) - sin(phi))
-    #        + W^2 r sin(psi) sin(phi) cos(phi) / (V cos(gamma))
-    f_ps = lu2 / vcg + vcg_sp * tf / r
-    if rotating:
-        wv = sg * cf - cg * sf * cp
-        gg = cg * cf + sg * cp * sf
-        rot2 = w2 * r * sp * sf * cf / vcg
-        f_v = f_v + w2 * r * cf * wv
-        f_ga = f_ga + 2.0 * omega * cf * sp + w2 * r * cf * gg / v
-        f_ps = f_ps - 2.0 * omega * (tg * cp * cf - sf) + rot2
-    f[:, V] = f_v
-    f[:, GA] = f_ga
-    f[:, PS] = f_ps
+    f = np.empty((n, 6), dtype=np.result_type(y, u, ft.lift))
+    for i, rate in enumerate(rt):
+        f[:, i] = rate
     if not jacobians:
         return TimeDerivatives(f=f, A=None, B=None, forces=ft), None
-    r3 = r**3
+    p = eom.partials(
+        k, rt, r, v, ft.lift, ft.lift_r, ft.lift_v, ft.drag_r, ft.drag_v, u1, u2, omega,
+        False, False,
+    )  # fmt: skip
     A = np.zeros((n, 6, 6), dtype=f.dtype)
     B = np.zeros((n, 6, 2), dtype=f.dtype)
-    A[:, R, V] = sg
-    A[:, R, GA] = vcg
-    A[:, TH, R] = -f_th / r
-    A[:, TH, PH] = f_th * tf
-    A[:, TH, V] = cg * sp / rcf
-    A[:, TH, GA] = -vsg * sp / rcf
-    A[:, TH, PS] = vcg * cp / rcf
-    A[:, PH, R] = -f_ph / r
-    A[:, PH, V] = cg * cp / r
-    A[:, PH, GA] = -vsg * cp / r
-    A[:, PH, PS] = -vcg_sp / r
-    a_vr = -ft.drag_r + 2.0 * sg / r3
-    A[:, V, V] = -ft.drag_v
-    a_vga = -cg / r2
+    for (i, j), name in STATE_PARTIALS.items():
+        A[:, i, j] = getattr(p, name)
+    B[:, GA, 0] = p.gamma_u1
+    B[:, PS, 1] = p.psi_u2
+    return TimeDerivatives(f=f, A=A, B=B, forces=ft), k.d.r3
 
-    a_gar = ft.lift_r * u1 / v - vcg / r2 + 2.0 * cg / (r3 * v)
-    a_gav = ft.lift_v * u1 / v - lu1 / v**2 + cg / r + cg / (r2 * v**2)
-    a_gaga = -vsg / r + sg / (r2 * v)
-    B[:, GA, 0] = L / v
 
-    a_psr = ft.lift_r * u2 / vcg - vcg_sp * tf / r2
-    a_psph = vcg_sp / (r * cf**2)
-    a_psv = ft.lift_v * u2 / vcg - lu2 / (v**2 * cg) + cg * sp * tf / r
-    a_psga = lu2 * sg / (v * cg**2) - vsg * sp * tf / r
-    a_psps = vcg * cp * tf / r
-    if rotating:
-        a_vr = a_vr + w2 * cf * wv
-        A[:, V, PH] = w2 * r * (-sf * wv + cf * (-sg * sf - cg * cf * cp))
-        a_vga = a_vga + w2 * r * cf * (cg * cf + sg * sf * cp)
-        A[:, V, PS] = w2 * r * cf * cg * sf * sp
-        a_gar = a_gar + w2 * cf * gg / v
-        A[:, GA, PH] = -2.0 * omega * sf * sp + w2 * r / v * (
-            -sf * gg + cf * (-cg * sf + sg * cp * cf)
-        )
-        a_gav = a_gav - w2 * r * cf * gg / v**2
-        a_gaga = a_gaga + w2 * r * cf * (-sg * cf + cg * cp * sf) / v
-        A[:, GA, PS] = 2.0 * omega * cf * cp - w2 * r * cf * sg * sp * sf / v
-        a_psr = a_psr + rot2 / r
-        a_psph = (
-            a_psph - 2.0 * omega * (-tg * cp * sf - cf) + w2 * r * sp * (cf * cf - sf * sf) / vcg
-        )
-        a_psv = a_psv - rot2 / v
-        a_psga = a_psga - 2.0 * omega * cp * cf / cg**2 + rot2 * tg
-        a_psps = a_psps + 2.0 * omega * tg * sp * cf + w2 * r * cp * sf * cf / vcg
-    A[:, V, R] = a_vr
-    A[:, V, GA] = a_vga
-    A[:, GA, R] = a_gar
-    A[:, GA, V] = a_gav
-    A[:, GA, GA] = a_gaga
-    A[:, PS, R] = a_psr
-    A[:, PS, PH] = a_psph
-    A[:, PS, V] = a_psv
-    A[:, PS, GA] = a_psga
-    A[:, PS, PS] = a_psps
-    B[:, PS, 1] = L / vcg
-    return TimeDerivatives(f=f, A=A, B=B, forces=ft), r3
+STATE_PARTIALS = {
+    (R, V): "r_v",
+    (R, GA): "r_gamma",
+    (TH, R): "theta_r",
+    (TH, PH): "theta_phi",
+    (TH, V): "theta_v",
+    (TH, GA): "theta_gamma",
+    (TH, PS): "theta_psi",
+    (PH, R): "phi_r",
+    (PH, V): "phi_v",
+    (PH, GA): "phi_gamma",
+    (PH, PS): "phi_psi",
+    (V, R): "v_r",
+    (V, PH): "v_phi",
+    (V, V): "v_v",
+    (V, GA): "v_gamma",
+    (V, PS): "v_psi",
+    (GA, R): "gamma_r",
+    (GA, PH): "gamma_phi",
+    (GA, V): "gamma_v",
+    (GA, GA): "gamma_gamma",
+    (GA, PS): "gamma_psi",
+    (PS, R): "psi_r",
+    (PS, PH): "psi_phi",
+    (PS, V): "psi_v",
+    (PS, GA): "psi_gamma",
+    (PS, PS): "psi_psi",
+}
+"""(row, column) of A = df/dy holding each field of ``models.eom.Partials``."""
 
 
 def speed_from_energy(r: Array, e: Array) -> tuple[Array, Array]:

@@ -2,34 +2,32 @@
 
 ``dynamics.time_dynamics`` is vectorized over nodes and carries Jacobians; called with a single
 state by an adaptive integrator (tens of thousands of calls per verification) its numpy
-overhead dominates. This is the same right-hand side (paper 000 eq. 1 in time form) evaluated
-with the ``math`` module; tests hold it equal to ``time_dynamics`` to round-off.
+overhead dominates. This is ``models.eom`` (paper 000 eq. 1 in time form) compiled by numba for
+floats, in the scalar form (divisions, each rate's rotation terms summed first); tests hold it
+equal to ``time_dynamics`` to round-off.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+from numba import njit
+
+from worker.solver.models import eom
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rates(
+    r: float, ph: float, v: float, ga: float, ps: float, u1: float, u2: float, lift: float,
+    drag: float, omega: float,
+) -> tuple[float, float, float, float, float, float]:  # fmt: skip
+    """The six rates at one point (``models.eom.rates``, scalar form)."""
+    k = eom.kinematics(r, ph, v, ga, ps, False)
+    f = eom.rates(k, r, v, lift, drag, u1, u2, omega, False, True)
+    return f[0], f[1], f[2], f[3], f[4], f[5]
 
 
 def time_rates(y: np.ndarray, cos_bank: float, sin_bank: float, lift: float, drag: float,
                omega: float) -> np.ndarray:  # fmt: skip
     """dy/dt for y = [r, theta, phi, V, gamma, psi] with lift and drag already evaluated (g0)."""
     r, _, ph, v, ga, ps = (float(c) for c in y)
-    sg, cg = math.sin(ga), math.cos(ga)
-    sp, cp = math.sin(ps), math.cos(ps)
-    sf, cf = math.sin(ph), math.cos(ph)
-    out = np.empty(6)
-    out[0] = v * sg
-    out[1] = v * cg * sp / (r * cf)
-    out[2] = v * cg * cp / r
-    out[3] = -drag - sg / (r * r)
-    out[4] = lift * cos_bank / v + (v - 1.0 / (r * v)) * cg / r
-    out[5] = lift * sin_bank / (v * cg) + v * cg * sp * (sf / cf) / r
-    if omega != 0.0:
-        w2 = omega * omega
-        out[3] += w2 * r * cf * (sg * cf - cg * sf * cp)
-        out[4] += 2.0 * omega * cf * sp + w2 * r * cf * (cg * cf + sg * cp * sf) / v
-        out[5] += -2.0 * omega * (sg / cg * cp * cf - sf) + w2 * r * sp * sf * cf / (v * cg)
-    return out
+    return np.array(_rates(r, ph, v, ga, ps, cos_bank, sin_bank, lift, drag, float(omega)))

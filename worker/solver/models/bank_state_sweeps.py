@@ -293,8 +293,11 @@ def warm_up() -> float:
     chain_kernel(x0, s, params, 2)
     # the kernels built on these dynamics, each warmed by its own module (lazy imports: they
     # import this one)
+    from worker.solver import scalar_rates
     from worker.solver.constraints import path_compiled
     from worker.solver.transcription import foh_hessian
+
+    scalar_rates.time_rates(x0[0, :6], 1.0, 0.0, 0.1, 0.1, 0.06)
 
     foh_hessian.warm_up(params)
     path_compiled.warm_up(params)

@@ -5,7 +5,7 @@ Paper 000 eq. 1 (Lu 2014, time form) over a spherical planet rotating at ``omega
 (cos and sin of the bank, or a relaxation of them, paper 000 eq. 20-22). The functions are
 written with numpy ufuncs on scalars or arrays: the numpy path calls them on arrays of nodes
 (complex-safe, for complex-step tests), the compiled kernels and the scalar integrator call
-their ``numba`` forms on floats (``models.eom_compiled``).
+them compiled by ``numba`` on floats (``register_jitable``).
 
 Three forms run them and each keeps the arithmetic it was recorded with (bitwise): the numpy
 path divides (``recip=False``) and adds the rotation terms one by one (``grouped=False``); the
