@@ -1,71 +1,13 @@
-"""Time-domain entry dynamics with the bank angle as a state and its rate as the control.
+"""Former home of the bank-state model: re-exports ``worker.solver.models.bank_state``.
 
-State z = [r, theta, phi, V, gamma, psi, sigma], control w = d(sigma)/dt (paper 002 sec. 2.2:
-bank and bank rate bounded). Built on ``dynamics.time_dynamics`` with u = (cos sigma, sin sigma),
-so the point-mass equations and their analytic Jacobians are not duplicated. The time-dilated
-form on a normalized interval tau in [0, 1] of length s is F = s f(z, w) (paper 002 eq. 10), with
-A = dF/dz = s df/dz, B = dF/dw = s df/dw and S = dF/ds = f (eq. 14).
+Kept until its importers move; ``NZ`` is ``models.layout.BANK_STATE.size``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from worker.solver.models.bank_state import SIGMA, BankStateDerivatives, bank_state_dynamics
+from worker.solver.models.layout import BANK_STATE
 
-import numpy as np
+NZ = BANK_STATE.size
 
-from worker.solver.dynamics import N_TIME_STATES, time_dynamics
-from worker.solver.forces import ForceTerms, VehicleForces
-
-Array = np.ndarray
-
-NZ = N_TIME_STATES + 1  # 7 states
-SIGMA = N_TIME_STATES  # index of the bank angle in z
-
-
-@dataclass
-class BankStateDerivatives:
-    """F = s f(z, w) and its Jacobians A (N, 7, 7), B (N, 7), S = f (N, 7) at N points."""
-
-    F: Array  # (N, 7)
-    A: Array | None  # (N, 7, 7)
-    B: Array | None  # (N, 7): dF/dw, one scalar control
-    S: Array  # (N, 7): dF/ds = f
-    forces: ForceTerms
-
-
-def bank_state_dynamics(
-    z: Array,
-    w: Array,
-    forces: VehicleForces,
-    omega: float,
-    s: Array | float = 1.0,
-    *,
-    jacobians: bool = True,
-) -> BankStateDerivatives:
-    """Time-dilated dynamics F = s f(z, w) with analytic Jacobians (paper 002 eq. 10, 14).
-
-    ``z`` is (N, 7), ``w`` (N,) the bank rate, ``s`` the interval length(s) (scalar or (N,));
-    with ``s = 1`` this is plain dz/dt. Complex-safe like ``time_dynamics``.
-    """
-    sigma = z[:, SIGMA]
-    cs, sn = np.cos(sigma), np.sin(sigma)
-    u = np.column_stack([cs, sn])
-    td = time_dynamics(z[:, :SIGMA], u, forces, omega, jacobians=jacobians)
-    n = z.shape[0]
-    f = np.empty((n, NZ), dtype=np.result_type(td.f, w))
-    f[:, :SIGMA] = td.f
-    f[:, SIGMA] = w
-    s_col = np.asarray(s)
-    s_vec = s_col[:, None] if s_col.ndim == 1 else s_col
-    if not jacobians:
-        return BankStateDerivatives(F=s_vec * f, A=None, B=None, S=f, forces=td.forces)
-    assert td.A is not None and td.B is not None
-    A = np.zeros((n, NZ, NZ), dtype=np.result_type(td.A, s_col))
-    A[:, :SIGMA, :SIGMA] = td.A
-    # d f / d sigma = B_u (d u / d sigma) with d u / d sigma = (-sin sigma, cos sigma)
-    A[:, :SIGMA, SIGMA] = td.B[:, :, 0] * (-sn)[:, None] + td.B[:, :, 1] * cs[:, None]
-    s_mat = s_col[:, None, None] if s_col.ndim == 1 else s_col
-    A *= s_mat
-    B = np.zeros((n, NZ), dtype=A.dtype)
-    B[:, SIGMA] = s_col
-    return BankStateDerivatives(F=s_vec * f, A=A, B=B, S=f, forces=td.forces)
+__all__ = ["NZ", "SIGMA", "BankStateDerivatives", "bank_state_dynamics"]
