@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import NZ
 from worker.solver.forces import ForceTerms
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
@@ -66,7 +65,7 @@ class TimeObjective:
     def gradients(self, z: Array, s: Array, ft: ForceTerms | None = None) -> tuple[Array, Array]:
         """d J / d z (K, 7) and d J / d s (N,) of the normalized objective at the reference
         (``ft``: the force terms at the nodes, evaluated here when a term needs them)."""
-        grad_z = np.zeros((z.shape[0], NZ))
+        grad_z = np.zeros(z.shape)
         grad_s = np.zeros(s.size)
         for term in self.problem.objective:
             if term.name in TERMINAL_TERMS:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
+from worker.solver.dynamics_bank_state import bank_state_dynamics
 from worker.solver.dynamics_compiled import (
     compiled_parameters,
     float_arrays,
@@ -84,6 +84,11 @@ class IntervalSamples:
         return cls(np.concatenate(parts, axis=-1))
 
     @property
+    def n_states(self) -> int:
+        """Number of states of the samples."""
+        return int(self.augmented.shape[-2])
+
+    @property
     def x(self) -> Array:
         """States (N, J, 7)."""
         return self.augmented[..., 0]
@@ -91,22 +96,22 @@ class IntervalSamples:
     @property
     def Phi(self) -> Array:
         """State-transition maps (N, J, 7, 7)."""
-        return self.augmented[..., 1 : NZ + 1]
+        return self.augmented[..., 1 : self.n_states + 1]
 
     @property
     def Bm(self) -> Array:
         """Maps of the interval's first bank rate (N, J, 7)."""
-        return self.augmented[..., NZ + 1]
+        return self.augmented[..., self.n_states + 1]
 
     @property
     def Bp(self) -> Array:
         """Maps of the interval's second bank rate (N, J, 7)."""
-        return self.augmented[..., NZ + 2]
+        return self.augmented[..., self.n_states + 2]
 
     @property
     def S(self) -> Array:
         """Maps of the interval length (N, J, 7)."""
-        return self.augmented[..., NZ + 3]
+        return self.augmented[..., self.n_states + 3]
 
     @property
     def jacobian(self) -> Array:
@@ -182,10 +187,10 @@ def interval_maps(
         xa, wa, wb, sa = float_arrays(x0, w0, w1, s)
         aug, kept = interval_maps_kernel(xa, wa, wb, sa, params, substeps, samples)
         return _unpack(aug, kept if samples else None)
-    n = s.size
-    state = np.zeros((n, NZ, NZ + 4))
+    n, nz = s.size, x0.shape[1]
+    state = np.zeros((n, nz, nz + 4))
     state[:, :, 0] = x0
-    state[:, :, 1 : NZ + 1] = np.eye(NZ)
+    state[:, :, 1 : nz + 1] = np.eye(nz)
 
     def rhs(tau: float, y: Array) -> Array:
         x = y[:, :, 0]
@@ -194,9 +199,9 @@ def interval_maps(
         out = np.empty_like(y)
         out[:, :, 0] = d.F
         out[:, :, 1:] = np.matmul(d.A, y[:, :, 1:])
-        out[:, :, NZ + 1] += (1.0 - tau) * d.B
-        out[:, :, NZ + 2] += tau * d.B
-        out[:, :, NZ + 3] += d.S
+        out[:, :, nz + 1] += (1.0 - tau) * d.B
+        out[:, :, nz + 2] += tau * d.B
+        out[:, :, nz + 3] += d.S
         return out
 
     keep: list[Array] | None = [state] if samples else None
@@ -218,11 +223,12 @@ def _unpack(state: Array, kept: Array | None) -> IntervalMaps:
     """IntervalMaps from the integrated [x | Phi | B- | B+ | S] (N, 7, 11) and, when kept, every
     substep (N, J, 7, 11)."""
     jac = state[:, :, 1:].copy()
+    nz = state.shape[1]
     return IntervalMaps(
-        Phi=jac[:, :, :NZ],
-        Bm=jac[:, :, NZ],
-        Bp=jac[:, :, NZ + 1],
-        S=jac[:, :, NZ + 2],
+        Phi=jac[:, :, :nz],
+        Bm=jac[:, :, nz],
+        Bp=jac[:, :, nz + 1],
+        S=jac[:, :, nz + 2],
         x_prop=state[:, :, 0].copy(),
         samples=None if kept is None else IntervalSamples(kept),
         stacked=jac,
@@ -271,7 +277,7 @@ def chain_propagate(
     Interval by interval (each step depends on the previous end), used for the initial reference.
     """
     k = s.size + 1
-    z = np.empty((k, NZ))
+    z = np.empty((k, np.size(z0)))
     z[0] = z0
     for i in range(k - 1):
         z[i + 1] = propagate_nodes(

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from worker.solver.dynamics_bank_state import NZ
 from worker.solver.dynamics_compiled import (
     compiled_parameters,
     float_arrays,
@@ -31,7 +30,8 @@ Array = np.ndarray
 
 def _jacobian(maps: IntervalMaps, with_interval: bool) -> Array:
     """[Phi | B- | B+ (| S)] of every interval, (M, 7, nb)."""
-    return maps.jacobian[:, :, : NZ + 3 if with_interval else NZ + 2]
+    jac = maps.jacobian
+    return jac[:, :, : jac.shape[1] + (3 if with_interval else 2)]
 
 
 def lagrangian_hessian(
@@ -54,8 +54,8 @@ def lagrangian_hessian(
     and, ``with_interval``, s_k. None when a perturbed integration is not finite (a reference
     that leaves the atmosphere model's range), so the caller can take a first-order step.
     """
-    n = s.size
-    nb = NZ + 3 if with_interval else NZ + 2
+    n, nz = s.size, z.shape[1]
+    nb = nz + 3 if with_interval else nz + 2
     params = compiled_parameters(forces, omega) if compiled else None
     if params is not None:  # the same differences, of adjoint gradients (dynamics_compiled)
         xa, wa, wb, sa, la, ha = float_arrays(z[:-1], w[:-1], w[1:], s, weights, steps)
@@ -68,18 +68,18 @@ def lagrangian_hessian(
     ss = np.tile(s, copies)
     for j in range(nb):
         block = slice((j + 1) * n, (j + 2) * n)
-        if j < NZ:
+        if j < nz:
             x0[block, j] += steps[j]
-        elif j == NZ:
+        elif j == nz:
             w0[block] += steps[j]
-        elif j == NZ + 1:
+        elif j == nz + 1:
             w1[block] += steps[j]
         else:
             ss[block] += steps[j]
     with np.errstate(all="ignore"):
         maps = interval_maps(x0, w0, w1, ss, forces, omega, substeps, compiled=False)
         jac = _jacobian(maps, with_interval)
-        jac = jac.reshape(copies, n, NZ, nb)
+        jac = jac.reshape(copies, n, nz, nb)
         # column j: d/dv_j of J_k' weights_k (the gradient of weights . Phi_k)
         grad = np.einsum("cnij,ni->cnj", jac, weights)
         hess = (grad[1:] - grad[0][None]) / steps[:, None, None]  # (nb: column, N, nb: row)
@@ -190,7 +190,7 @@ def convexified_curvature(
         )
         return values if ok else None
     hess = lagrangian_hessian(
-        z, w, s, forces, omega, weights, steps, substeps, nb == NZ + 3, compiled=False
+        z, w, s, forces, omega, weights, steps, substeps, nb == z.shape[1] + 3, compiled=False
     )
     return None if hess is None else layout.values(hess)
 
@@ -201,8 +201,9 @@ def warm_up(params: Array) -> None:
     ``dynamics_compiled.warm_up``."""
     x0 = np.array([[1.015, 0.0, 0.0, 0.9, 0.0, 0.0, 0.3]])
     w = np.zeros(1)
-    steps = np.full(NZ + 3, 1e-5)
-    keep = np.array([j for j in range(NZ + 3) if j != 1], dtype=np.int64)
+    nb = x0.shape[1] + 3
+    steps = np.full(nb, 1e-5)
+    keep = np.array([j for j in range(nb) if j != 1], dtype=np.int64)
     rows, cols = (a.astype(np.int64) for a in np.triu_indices(keep.size))
     curvature_kernel(
         x0,
@@ -211,7 +212,7 @@ def warm_up(params: Array) -> None:
         np.full(1, 0.01),
         x0.copy(),
         steps,
-        NZ + 3,
+        nb,
         params,
         2,
         keep,

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
+from worker.solver.dynamics_bank_state import bank_state_dynamics
 from worker.solver.dynamics_compiled import chain_kernel, compiled_parameters, float_arrays
 from worker.solver.problem import STATE_NAMES, EntryProblem
 
@@ -57,7 +57,7 @@ def propagate_constant_bank(
         xa, sa = float_arrays(x, s)
         chain: Array = chain_kernel(xa, sa, params, GUESS_SUBSTEPS)
         return chain
-    z = np.empty((c, s.size + 1, NZ))
+    z = np.empty((c, s.size + 1, x.shape[1]))
     z[:, 0] = x
     zero = np.zeros(c)
     with np.errstate(all="ignore"):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
+from worker.solver.dynamics_bank_state import bank_state_dynamics
 from worker.solver.forces import VehicleForces
 from worker.solver.transcription.foh_exact import IntervalMaps
 
@@ -24,7 +24,7 @@ def trapezoid_maps(
     d = bank_state_dynamics(z, w, forces, omega)
     assert d.A is not None and d.B is not None
     half = 0.5 * s
-    eye = np.eye(NZ)[None, :, :]
+    eye = np.eye(z.shape[1])[None, :, :]
     f_mean = 0.5 * (d.S[:-1] + d.S[1:])
     return IntervalMaps(
         Phi=eye + half[:, None, None] * d.A[:-1],
