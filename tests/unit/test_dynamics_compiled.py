@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from app.schemas import ProblemDocument
-from worker.solver.dynamics_compiled import compiled_parameters
+from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.problem import EntryProblem, build_problem
 from worker.solver.scenarios import get_scenario
 from worker.solver.transcription.foh_exact import interval_maps, propagate_nodes
