@@ -44,6 +44,7 @@ def dynamics_block(tr: EnergyTrapezoid) -> RowBlock[SubproblemData]:
     row = (nx * np.arange(N)[:, None] + np.arange(nx)[None, :])[:, :, None]
 
     def half() -> Array:
+        """h_i / 2 on the current grid, shaped for the (N, nx, .) blocks."""
         return 0.5 * tr.h[:, None, None]
 
     # dA_i[j,k] = -delta_jk S_j - h/2 A_i[j,k] S_k ;  dA_{i+1} = +delta S - h/2 A_{i+1} S
@@ -57,6 +58,7 @@ def dynamics_block(tr: EnergyTrapezoid) -> RowBlock[SubproblemData]:
         terms.append(Term(np.arange(N * nx), tr.col_nu.ravel(), -1.0))
 
     def rhs(d: SubproblemData) -> Array:
+        """The trapezoid's defect of the reference on the current grid."""
         h = tr.h
         c = d.f - np.einsum("kjm,km->kj", d.B, d.u_ref)
         return (-(d.x_ref[1:] - d.x_ref[:-1]) + 0.5 * h[:, None] * (c[:-1] + c[1:])).ravel()

@@ -115,6 +115,7 @@ def bound_block(
     rows = np.arange(K)
 
     def rhs(d: SubproblemData) -> Array:
+        """bound - v_bar at every node, then bound + v_bar."""
         v = value(d)
         return np.concatenate([bound - v, bound + v])
 
@@ -137,6 +138,7 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
     buffered = 0  # the buffers cover the path, zone and between-node rows in that order
 
     def buffer(size: int) -> tuple[Term[SubproblemData], ...]:
+        """The buffer term of the next ``size`` buffered rows (none when unweighted)."""
         nonlocal buffered
         if not sub.n_buffer:
             return ()

@@ -85,6 +85,7 @@ def soft_block(
     sign = np.array([1.0, -1.0])[None, :]
 
     def rhs(d: D) -> Array:
+        """+-(value - x_bar_j) of each condition, interleaved."""
         off = values - final(d)[states]
         return np.stack([off, -off], axis=1).ravel()
 
@@ -110,6 +111,7 @@ def range_block(
     pair = np.arange(len(ranges))[:, None] * 2 + np.array([0, 1])[None, :]
 
     def rhs(d: D) -> Array:
+        """hi - x_bar_j and x_bar_j - lo of each condition, interleaved."""
         xr = final(d)[states]
         return np.stack([hi - xr, xr - lo], axis=1).ravel()
 
