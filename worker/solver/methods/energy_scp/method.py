@@ -30,7 +30,6 @@ from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
-from worker.solver.methods.terminal_pending import terminal_rows
 from worker.solver.models.layout import ENERGY
 from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
@@ -39,6 +38,7 @@ from worker.solver.scp.trust import FixedTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
 from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
+from worker.solver.transcription.terminal import terminal_rows
 
 Array = np.ndarray
 REGRID_AFTER = 2

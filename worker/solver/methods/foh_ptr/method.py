@@ -28,12 +28,12 @@ from worker.solver.dynamics_compiled import compiled_parameters, warm_up
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
-from worker.solver.methods.terminal_pending import terminal_rows
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.foh_subproblem import FohSubproblem, GridLimits, SubproblemData
+from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
 
 Array = np.ndarray
