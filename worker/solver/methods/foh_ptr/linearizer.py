@@ -21,9 +21,9 @@ from worker.solver.constraints.no_fly import (
     zone_distance,
 )
 from worker.solver.constraints.path_compiled import limit_parameters
+from worker.solver.methods.foh_ptr.objective import TimeObjective
 from worker.solver.models.layout import BANK_STATE
 from worker.solver.problem import EntryProblem
-from worker.solver.scp.foh_objective import TimeObjective
 from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
 from worker.solver.transcription.foh_hessian import BlockLayout, convexified_curvature
 from worker.solver.transcription.foh_subproblem import SubproblemData
