@@ -335,13 +335,13 @@ def _load_solver(attempt: _Attempt) -> None:
     """Load the solver's compiled kernels if this process has not yet; the first load after an
     install compiles them (about a minute), which the job's progress says (phase ``compiling``).
     The job's time limit starts after it."""
-    from worker.solver import dynamics_compiled
+    from worker.solver import warmup
 
-    if dynamics_compiled.is_warm():
+    if warmup.is_warm():
         return
     attempt.on_phase("compiling")
     try:
-        seconds = dynamics_compiled.warm_up()
+        seconds = warmup.warm_up()
     except attempt.passthrough:
         raise
     except Exception:  # the solve reports the problem if it needs the kernels

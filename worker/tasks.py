@@ -12,7 +12,7 @@ from worker.celery_app import TASK_NAME, app
 from worker.jobs import execute_job
 from worker.notify import RedisNotifier
 from worker.solver import api as _solver_api  # noqa: F401  (loaded once, before the pool forks)
-from worker.solver.dynamics_compiled import warm_up
+from worker.solver.warmup import warm_up
 
 warm_up()  # the compiled kernels too, before the pool forks: no job pays for their compilation
 

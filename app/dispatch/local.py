@@ -90,7 +90,7 @@ def _warm_up() -> float:
     start = time.perf_counter()
     import worker.jobs
     import worker.solver.api  # noqa: F401
-    from worker.solver.dynamics_compiled import warm_up
+    from worker.solver.warmup import warm_up
 
     warm_up()
     return time.perf_counter() - start

@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from app.schemas import ProblemDocument
-from worker.solver.dynamics_bank_state import NZ, bank_state_dynamics
+from worker.solver.models.bank_state import bank_state_dynamics
 from worker.solver.problem import EntryProblem, build_problem
 from worker.solver.scenarios import get_scenario
 from worker.solver.transcription.foh_exact import foh_exact, propagate_nodes
@@ -93,7 +93,7 @@ def test_maps_match_finite_differences(problem: EntryProblem) -> None:
     assert np.allclose(diff(bump_w(k + 1))[k], maps.Bp[k], rtol=1e-5, atol=1e-7)
     ds = diff(lambda e: (z, w, s + e * (np.arange(s.size) == k)))
     assert np.allclose(ds[k], maps.S[k], rtol=1e-5, atol=1e-6)
-    for j in range(NZ):
+    for j in range(z.shape[1]):
         e_j = np.zeros_like(z)
         e_j[k, j] = 1.0
         col = diff(lambda e, e_j=e_j: (z + e * e_j, w, s))[k]
@@ -107,7 +107,7 @@ def test_inner_samples_match_propagation_and_finite_differences(problem: EntryPr
     z, w, s = _reference(problem)
     maps = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, samples=True)
     samples = maps.samples
-    assert samples is not None and samples.x.shape == (s.size, 9, NZ)
+    assert samples is not None and samples.x.shape == (s.size, 9, z.shape[1])
     k, j = 4, 3  # interval 4, tau = 3/8
     tau = j / 8
 
@@ -139,7 +139,7 @@ def test_inner_samples_match_propagation_and_finite_differences(problem: EntryPr
     )
     ds = diff(lambda e: (z, w, s + e * (np.arange(s.size) == k)))
     assert np.allclose(ds, samples.S[k, j], rtol=1e-5, atol=1e-6)
-    for col in range(NZ):
+    for col in range(z.shape[1]):
         e_c = np.zeros_like(z)
         e_c[k, col] = 1.0
         d_col = diff(lambda e, e_c=e_c: (z + e * e_c, w, s))
@@ -165,7 +165,7 @@ def test_bank_state_jacobians_complex_step(problem: EntryProblem) -> None:
     d = bank_state_dynamics(z, w, problem.forces, problem.omega, s)
     assert d.A is not None and d.B is not None
     step = 1e-30
-    for j in range(NZ):
+    for j in range(z.shape[1]):
         zc = z.astype(complex)
         zc[:, j] += 1j * step
         num = bank_state_dynamics(zc, w, problem.forces, problem.omega, s, jacobians=False)
@@ -186,9 +186,10 @@ def test_samples_end_at_the_node_and_the_propagated_end(problem: EntryProblem) -
     z, w, s = _reference(problem)
     maps = foh_exact(z, w, s, problem.forces, problem.omega, substeps=8, samples=True)
     both = maps.samples
-    assert both is not None and both.x.shape == (s.size, 9, NZ)
+    nz = z.shape[1]
+    assert both is not None and both.x.shape == (s.size, 9, nz)
     assert np.array_equal(both.x[:, 0], z[:-1])
-    assert np.array_equal(both.Phi[:, 0], np.broadcast_to(np.eye(NZ), (s.size, NZ, NZ)))
+    assert np.array_equal(both.Phi[:, 0], np.broadcast_to(np.eye(nz), (s.size, nz, nz)))
     assert not np.any(both.Bm[:, 0]) and not np.any(both.Bp[:, 0]) and not np.any(both.S[:, 0])
     for name in ("Phi", "Bm", "Bp", "S"):
         assert np.array_equal(getattr(both, name)[:, -1], getattr(maps, name))

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from app.schemas.result import ResultDocument, json_ready
-from worker.solver.dynamics_compiled import compiled_parameters
+from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
 from worker.solver.verification import OptimizedTrajectory

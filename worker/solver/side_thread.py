@@ -1,10 +1,10 @@
 """One helper thread per process, for solver work that can overlap the main thread's.
 
-The compiled kernels (``dynamics_compiled``) release the GIL, so a kernel submitted here runs on
-a second core while the main thread goes on (the time-domain SCP integrates the curvature of the
-interval maps beside the maps themselves). The thread is created on first use and again after a
-fork (a Celery prefork child does not inherit its parent's threads); with a single CPU available
-``available()`` is False and callers run the work in line.
+The compiled kernels (``models.bank_state_sweeps``) release the GIL, so a kernel submitted here
+runs on a second core while the main thread goes on (the time-domain SCP integrates the
+curvature of the interval maps beside the maps themselves). The thread is created on first use
+and again after a fork (a Celery prefork child does not inherit its parent's threads); with a
+single CPU available ``available()`` is False and callers run the work in line.
 """
 
 from __future__ import annotations

@@ -152,7 +152,7 @@ def smooth_max_kernel(
 def warm_up(forces: Array) -> None:
     """Compile (or load from the cache) both kernels on a one-point case with every limit and a
     three-term alpha factor; ``forces``: ``models.bank_state_compiled.compiled_parameters``'
-    layout. Called by ``models.bank_state_sweeps.warm_up``."""
+    layout. Called by ``worker.solver.warmup.warm_up``."""
     limits = np.zeros(_QA + 3)
     limits[[_HEAT, _QBAR, _LOAD, _NQA, _QA]] = [1.0, 1.0, 1.0, 3.0, 1.0]
     point = np.array([1.015])

@@ -3,13 +3,11 @@ interval, the discrete-adjoint end gradients and the Lagrangian Hessian blocks (
 
 ``interval_maps_kernel`` integrates the augmented system [x | Phi | B- | B+ | S] of
 ``transcription.foh_exact`` by RK4; ``lagrangian_hessian_kernel`` differences adjoint gradients
-of the same RK4 steps (``transcription.foh_hessian``). ``warm_up`` compiles (or loads) every
-kernel of the solver; ``python -m worker.solver.models.bank_state_sweeps`` fills the cache.
+of the same RK4 steps (``transcription.foh_hessian``). ``warm_up`` compiles (or loads) the
+model's kernels on a tiny case; ``worker.solver.warmup`` warms every kernel of the solver.
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 from numba import njit
@@ -264,46 +262,13 @@ def lagrangian_hessian_kernel(
     return hess
 
 
-_warmed = False
-
-
-def is_warm() -> bool:
-    """Whether this process has loaded (or compiled) the kernels already."""
-    return _warmed
-
-
-def warm_up() -> float:
-    """Compile every kernel (or load it from numba's on-disk cache) on a tiny case; seconds taken.
-
-    The first compilation on a machine takes about 20 s; afterwards loading takes well under one.
-    Worker processes call this before taking jobs, so a job's time limit never pays for it; once
-    the kernels are loaded in this process it returns at once.
-    """
-    global _warmed
-    if _warmed:
-        return 0.0
-    start = time.perf_counter()
-    head = [6.378e6, 7.9e3, 1.2e4, 1.225, 7.2e3, 0.06, 1.0, 40.0, 4.57e3, 1.8e-6, 1.0, 2.0, 2.0]
-    params = np.array([*head, 0.0, 0.02, 0.08, 0.9])  # CL and CD(CL), two coefficients each
+def warm_up(params: Array) -> None:
+    """Compile (or load from the cache) the model's kernels on one interval with the argument
+    types the transcription passes; ``params``: ``compiled_parameters``' layout. Called by
+    ``worker.solver.warmup.warm_up``."""
     x0 = np.array([[1.015, 0.0, 0.0, 0.9, 0.0, 0.0, 0.3]])
     w = np.zeros(1)
     s = np.full(1, 0.01)
     interval_maps_kernel(x0, w, w, s, params, 2, True)
     propagate_kernel(x0, w, w, s, params, 2, True)
     chain_kernel(x0, s, params, 2)
-    # the kernels built on these dynamics, each warmed by its own module (lazy imports: they
-    # import this one)
-    from worker.solver import scalar_rates
-    from worker.solver.constraints import path_compiled
-    from worker.solver.transcription import foh_hessian
-
-    scalar_rates.time_rates(x0[0, :6], 1.0, 0.0, 0.1, 0.1, 0.06)
-
-    foh_hessian.warm_up(params)
-    path_compiled.warm_up(params)
-    _warmed = True
-    return time.perf_counter() - start
-
-
-if __name__ == "__main__":
-    print(f"compiled dynamics ready in {warm_up():.1f} s")

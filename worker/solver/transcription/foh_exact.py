@@ -11,7 +11,7 @@ deviation dynamics are discretized exactly (eq. 17-24) by integrating alongside 
 
 the inverse-free form of Theorem 1 (eq. 19), so no STM inverse is formed. The (N, 7, 11) system
 [x | Phi | B- | B+ | S] advances by classical Runge-Kutta steps: in a compiled loop over the
-intervals (``dynamics_compiled``) when the force models have a compiled form, else vectorized
+intervals (``models.bank_state_sweeps``) when the force models have a compiled form, else vectorized
 over all intervals at once in numpy. The result gives the stitched subproblem
 dynamics dz_{k+1} = Phi_k dz_k + B-_k dw_k + B+_k dw_{k+1} + S_k ds_k + (x_prop_{k+1} - z_{k+1}).
 """
@@ -23,14 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import bank_state_dynamics
-from worker.solver.dynamics_compiled import (
+from worker.solver.forces import VehicleForces
+from worker.solver.models.bank_state import bank_state_dynamics
+from worker.solver.models.bank_state_compiled import (
     compiled_parameters,
     float_arrays,
-    interval_maps_kernel,
     propagate_kernel,
 )
-from worker.solver.forces import VehicleForces
+from worker.solver.models.bank_state_sweeps import interval_maps_kernel
 
 Array = np.ndarray
 
@@ -179,8 +179,8 @@ def interval_maps(
 
     ``foh_exact`` calls it with consecutive nodes; the Lagrangian Hessian (``foh_hessian``) with
     perturbed copies of every interval stacked into one batch. The compiled kernel
-    (``dynamics_compiled``) runs the same steps when the force models have a compiled form and
-    the inputs are real; ``compiled=False`` forces the numpy form.
+    (``models.bank_state_sweeps``) runs the same steps when the force models have a compiled
+    form and the inputs are real; ``compiled=False`` forces the numpy form.
     """
     params = _kernel_parameters(forces, omega, compiled, x0, w0, w1, s)
     if params is not None:

@@ -17,12 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from worker.solver.dynamics_compiled import (
-    compiled_parameters,
-    float_arrays,
-    lagrangian_hessian_kernel,
-)
 from worker.solver.forces import VehicleForces
+from worker.solver.models.bank_state_compiled import compiled_parameters, float_arrays
+from worker.solver.models.bank_state_sweeps import lagrangian_hessian_kernel
 from worker.solver.transcription.foh_exact import IntervalMaps, interval_maps
 
 Array = np.ndarray
@@ -57,7 +54,7 @@ def lagrangian_hessian(
     n, nz = s.size, z.shape[1]
     nb = nz + 3 if with_interval else nz + 2
     params = compiled_parameters(forces, omega) if compiled else None
-    if params is not None:  # the same differences, of adjoint gradients (dynamics_compiled)
+    if params is not None:  # the same differences, of adjoint gradients (models.bank_state_sweeps)
         xa, wa, wb, sa, la, ha = float_arrays(z[:-1], w[:-1], w[1:], s, weights, steps)
         hess = lagrangian_hessian_kernel(xa, wa, wb, sa, la, ha, nb, params, substeps)
         return hess if bool(np.all(np.isfinite(hess))) else None
@@ -198,7 +195,7 @@ def convexified_curvature(
 def warm_up(params: Array) -> None:
     """Compile (or load from the cache) ``curvature_kernel`` on one interval with the argument
     types ``convexified_curvature`` passes; ``params``: ``compiled_parameters``' layout. Called by
-    ``dynamics_compiled.warm_up``."""
+    ``worker.solver.warmup.warm_up``."""
     x0 = np.array([[1.015, 0.0, 0.0, 0.9, 0.0, 0.0, 0.3]])
     w = np.zeros(1)
     nb = x0.shape[1] + 3

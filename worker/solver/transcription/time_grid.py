@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import bank_state_dynamics
-from worker.solver.dynamics_compiled import chain_kernel, compiled_parameters, float_arrays
+from worker.solver.models.bank_state import bank_state_dynamics
+from worker.solver.models.bank_state_compiled import chain_kernel, compiled_parameters, float_arrays
 from worker.solver.problem import STATE_NAMES, EntryProblem
 
 Array = np.ndarray
@@ -53,7 +53,7 @@ def propagate_constant_bank(
     x = np.tile(np.r_[problem.y0, 0.0], (c, 1))
     x[:, -1] = banks
     params = compiled_parameters(problem.forces, problem.omega) if compiled else None
-    if params is not None:  # the same RK4 steps, compiled (dynamics_compiled)
+    if params is not None:  # the same RK4 steps, compiled (models.bank_state_compiled)
         xa, sa = float_arrays(x, s)
         chain: Array = chain_kernel(xa, sa, params, GUESS_SUBSTEPS)
         return chain

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from worker.solver.dynamics_bank_state import bank_state_dynamics
 from worker.solver.forces import VehicleForces
+from worker.solver.models.bank_state import bank_state_dynamics
 from worker.solver.transcription.foh_exact import IntervalMaps
 
 Array = np.ndarray

@@ -24,10 +24,10 @@ import numpy as np
 from app.schemas.methods import FohPtrOptions
 from worker.solver import side_thread
 from worker.solver.conic import ConeProblem, ConicSolution
-from worker.solver.dynamics_compiled import compiled_parameters, warm_up
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
+from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
@@ -35,6 +35,7 @@ from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.foh_subproblem import FohSubproblem, GridLimits, SubproblemData
 from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
+from worker.solver.warmup import warm_up
 
 Array = np.ndarray
 Linearization = tuple[SubproblemData, Array]
