@@ -31,10 +31,6 @@ NotifyFn = Callable[[str, str], None]
 """``notify(job_id, kind)`` with kind ``"iteration"`` or ``"end"``: wakes up event streams."""
 
 
-json_safe = json_ready
-"""Strict JSON for storage: the result contract's one conversion (NaN and infinities as null)."""
-
-
 def progress_of(record: dict[str, Any], elapsed_s: float) -> dict[str, Any]:
     """The live-progress summary of one iteration record."""
     return {

@@ -13,7 +13,7 @@ import pytest
 
 from app.schemas.geometry import central_angle_rad
 from worker.solver.constraints.no_fly import zone_distance
-from worker.solver.problem import CircleZone
+from worker.solver.geometry import CircleZone
 
 LAT = np.radians(np.array([40.0, 47.5, 52.0, 58.0]))
 LON = np.radians(np.array([-3.0, 1.0, 9.0, 4.0]))

@@ -1,5 +1,4 @@
-"""The problem model carries what downstream reads of the request as typed fields, and the shared
-types moved down (trajectory, geometry, backend registry) stay importable from their old homes."""
+"""The problem model carries what downstream reads of the request as typed fields."""
 
 from __future__ import annotations
 
@@ -9,8 +8,6 @@ import math
 import pytest
 
 from app.schemas import ProblemDocument
-from worker.solver import conic, geometry, problem, trajectory, verification
-from worker.solver.conic import registry
 from worker.solver.problem import STATE_NAMES, build_problem
 from worker.solver.scenarios import get_scenario, list_scenarios
 
@@ -19,9 +16,11 @@ SCENARIOS = [s.name for s in list_scenarios()]
 
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_typed_fields_match_the_request(name: str) -> None:
-    """Name, initial bank (radians) and terminal conditions in request units match the request."""
+    """Name, initial bank (radians) and terminal conditions in request units match the request;
+    the request document itself is not carried along."""
     doc = ProblemDocument.model_validate(get_scenario(name).problem)
     model = build_problem(doc)
+    assert not hasattr(model, "document")
     assert model.name == doc.name
     bank = doc.initial_state.bank_deg
     assert model.initial_bank == (math.radians(bank) if bank is not None else None)
@@ -61,12 +60,3 @@ def test_range_and_soft_terminal_kept_in_request_units() -> None:
     )
     soft = model.terminal_si["velocity_m_s"]
     assert (soft.kind, soft.value, soft.weight) == ("soft", 760.0, 2.0)
-
-
-def test_moved_types_keep_their_old_names() -> None:
-    """Until every importer has moved, the old import paths give the very same objects."""
-    assert verification.OptimizedTrajectory is trajectory.OptimizedTrajectory
-    assert verification.bank_profile is trajectory.bank_profile
-    assert problem.CircleZone is geometry.CircleZone
-    assert conic.make_backend is registry.make_backend
-    assert conic.KNOWN_BACKENDS == registry.KNOWN_BACKENDS

@@ -14,12 +14,13 @@ from typing import Any
 
 import pytest
 
+from app.schemas.result import json_ready
 from app.settings import Settings
 from app.storage import repository
 from app.storage.models import Job
 from app.storage.session import Database
 from app.submission import resolve_submission
-from worker.jobs import execute_job, json_safe
+from worker.jobs import execute_job
 
 SCENARIO = "rlv-min-heat-load"
 
@@ -227,9 +228,9 @@ def test_a_job_whose_workers_keep_dying_ends_worker_lost(
     assert (job.status, job.error_code) == ("failed", "worker_lost")
 
 
-def test_json_safe_replaces_non_finite_numbers() -> None:
+def test_json_ready_replaces_non_finite_numbers() -> None:
     value = {"a": [1.0, math.nan, math.inf], "b": (1, "x"), "c": None}
-    assert json_safe(value) == {"a": [1.0, None, None], "b": [1, "x"], "c": None}
+    assert json_ready(value) == {"a": [1.0, None, None], "b": [1, "x"], "c": None}
 
 
 def test_the_history_is_stored_once_and_the_result_served_with_it(

@@ -11,10 +11,11 @@ from collections.abc import Callable
 from typing import Any
 
 from app.schemas import ProblemDocument
+from app.schemas.result import json_ready
 from worker.solver.methods import METHODS, check_support
 from worker.solver.objectives import UNITS
 from worker.solver.problem import build_problem
-from worker.solver.result import provenance, sanitize, trajectory_columns, validated
+from worker.solver.result import provenance, trajectory_columns, validated
 from worker.solver.scp.history import IterationRecord
 from worker.solver.verification import VerificationStoppedError, verify
 
@@ -104,7 +105,7 @@ def solve_problem(
 
     def forward(record: IterationRecord) -> None:
         if on_iteration is not None:
-            on_iteration(sanitize(record.as_dict()))
+            on_iteration(json_ready(record.as_dict()))
 
     if on_phase is not None:
         on_phase("optimizing")
@@ -122,7 +123,7 @@ def solve_problem(
         "failure": failure,
         "method": method,
         "history": [r.as_dict() for r in outcome.history],
-        "provenance": provenance(model),
+        "provenance": provenance(model, problem.method),
     }
     verification_s = 0.0
     if outcome.trajectory is not None:

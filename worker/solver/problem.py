@@ -21,9 +21,6 @@ from worker.solver.geometry import CircleZone
 from worker.solver.path_limits import HeatRateModel, PathLimits
 from worker.solver.units import Scales
 
-# CircleZone now lives in worker.solver.geometry; importing it from here still works until every
-# importer has moved.
-
 TerminalKind = Literal["fixed", "range", "free", "soft"]
 STATE_NAMES = (
     "altitude_m",
@@ -65,9 +62,8 @@ class ObjectiveTerm:
 @dataclass
 class EntryProblem:
     """Nondimensional entry problem shared by every method: everything downstream reads of the
-    request, as typed fields (``document`` goes once its last readers have moved to them)."""
+    request, as typed fields (the request document itself stays with the caller)."""
 
-    document: ProblemDocument
     name: str | None  # the problem's label, for the result's provenance
     scales: Scales
     forces: VehicleForces
@@ -211,7 +207,6 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         for w in sorted(doc.waypoints, key=lambda w: w.order)
     ]
     return EntryProblem(
-        document=doc,
         name=doc.name,
         scales=scales,
         forces=forces,

@@ -10,11 +10,12 @@ from typing import Any
 
 import numpy as np
 
+from app.schemas.methods import ScpRunOptions
 from app.schemas.result import ResultDocument, json_ready
 from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
-from worker.solver.verification import OptimizedTrajectory
+from worker.solver.trajectory import OptimizedTrajectory
 
 UNITS = {
     "time_s": "s",
@@ -85,23 +86,18 @@ def dynamics_path(problem: EntryProblem) -> dict[str, str]:
     }
 
 
-def provenance(problem: EntryProblem) -> dict[str, Any]:
-    """Package versions, options, platform and the dynamics path: what is needed to reproduce
-    the result and to explain its time."""
+def provenance(problem: EntryProblem, options: ScpRunOptions) -> dict[str, Any]:
+    """Package versions, the method's ``options``, platform and the dynamics path: what is needed
+    to reproduce the result and to explain its time."""
     return {
         "created_at": datetime.now(UTC).isoformat(),
         "packages": {name: _version(name) for name in PACKAGES},
         "python": sys.version.split()[0],
         "platform": platform.platform(),
-        "method_options": problem.document.method.model_dump(mode="json"),
-        "problem_name": problem.document.name,
+        "method_options": options.model_dump(mode="json"),
+        "problem_name": problem.name,
         **dynamics_path(problem),
     }
-
-
-sanitize = json_ready
-"""The result contract's JSON conversion (:func:`app.schemas.result.json_ready`), by its old
-name."""
 
 
 def validated(document: dict[str, Any]) -> dict[str, Any]:

@@ -29,8 +29,6 @@ from worker.solver.problem import STATE_NAMES, EntryProblem, TerminalTarget
 from worker.solver.scalar_rates import time_rates
 from worker.solver.trajectory import Array, OptimizedTrajectory, bank_profile
 
-# OptimizedTrajectory now lives in worker.solver.trajectory; importing it from here still works
-# until every importer has moved.
 StopCheck = Callable[[], bool]
 
 STOP_POLL_INTERVAL_S = 0.2

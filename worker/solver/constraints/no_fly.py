@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from worker.solver.constraints.between_nodes import smooth_max_rows
-from worker.solver.problem import CircleZone
+from worker.solver.geometry import CircleZone
 from worker.solver.transcription.foh_data import InnerRows
 from worker.solver.transcription.foh_exact import IntervalSamples
 

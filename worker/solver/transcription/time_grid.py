@@ -111,7 +111,7 @@ def initial_reference(
     """The propagated constant-bank reference on a uniform grid (paper 002 sec. 4)."""
     assert problem.final_time is not None
     s = uniform_intervals(problem.final_time, nodes)
-    fixed_bank = problem.document.initial_state.bank_deg
+    fixed_bank = problem.initial_bank_deg
     if initial_bank_deg is not None:
         candidates = np.array([initial_bank_deg])
     elif fixed_bank is not None:
