@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from worker.solver.models.layout import ALPHA_BANK_STATE
+from worker.solver.transcription.foh_data import SubproblemData
 from worker.solver.transcription.foh_exact import IntervalMaps
-from worker.solver.transcription.foh_subproblem import FohSubproblem, SubproblemData
+from worker.solver.transcription.foh_subproblem import FohSubproblem
 from worker.solver.transcription.terminal import TerminalRow
 
 

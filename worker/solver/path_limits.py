@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from worker.solver.forces import ForceTerms, VehicleForces
+from worker.solver.polynomial import horner
 
 Array = np.ndarray
 
@@ -31,12 +32,7 @@ class HeatRateModel:
         if not self.alpha_polynomial:
             return np.ones_like(alpha_deg), np.zeros_like(alpha_deg)
         c = self.alpha_polynomial
-        val = np.zeros_like(alpha_deg) + c[-1]
-        der = np.zeros_like(alpha_deg)
-        for coef in reversed(c[:-1]):
-            der = der * alpha_deg + val
-            val = val * alpha_deg + coef
-        return val, der
+        return horner(c, 0, len(c), alpha_deg)
 
 
 @dataclass(frozen=True)

@@ -24,13 +24,9 @@ from worker.solver.transcription.energy_rows import row_blocks
 from worker.solver.transcription.rows import Columns, RowSystem
 from worker.solver.transcription.terminal import TerminalRow
 
-__all__ = ["NU", "NX", "EnergyTrapezoid", "SubproblemData", "TerminalRow", "Unpacked"]
-
 Array = np.ndarray
 NU = 2
 """Controls of the relaxation: u = (cos sigma, sin sigma) with |u| <= 1 (paper 000 eq. 22)."""
-NX = ENERGY.size
-"""The energy form's state count, for callers that have not moved to ``ENERGY.size``."""
 
 
 @dataclass

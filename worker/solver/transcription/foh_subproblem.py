@@ -17,19 +17,10 @@ import numpy as np
 from worker.solver.conic import ConeProblem
 from worker.solver.models.layout import BANK_STATE, StateLayout
 from worker.solver.transcription.foh_cost import FohCost
-from worker.solver.transcription.foh_data import GridLimits, InnerRows, Solution, SubproblemData
+from worker.solver.transcription.foh_data import GridLimits, Solution, SubproblemData
 from worker.solver.transcription.foh_rows import row_blocks
 from worker.solver.transcription.rows import Columns, RowSystem
 from worker.solver.transcription.terminal import TerminalRow
-
-__all__ = [
-    "FohSubproblem",
-    "GridLimits",
-    "InnerRows",
-    "Solution",
-    "SubproblemData",
-    "TerminalRow",
-]
 
 Array = np.ndarray
 _INDEXED_STATES = ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s", "bank_deg")

@@ -24,9 +24,9 @@ from worker.solver.constraints.path_compiled import limit_parameters
 from worker.solver.methods.foh_ptr.objective import TimeObjective
 from worker.solver.models.layout import BANK_STATE
 from worker.solver.problem import EntryProblem
+from worker.solver.transcription.foh_data import SubproblemData
 from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
 from worker.solver.transcription.foh_hessian import BlockLayout, convexified_curvature
-from worker.solver.transcription.foh_subproblem import SubproblemData
 from worker.solver.transcription.time_trapezoid import trapezoid_maps
 
 Array = np.ndarray

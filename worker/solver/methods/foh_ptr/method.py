@@ -32,7 +32,8 @@ from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
-from worker.solver.transcription.foh_subproblem import FohSubproblem, GridLimits, SubproblemData
+from worker.solver.transcription.foh_data import GridLimits, SubproblemData
+from worker.solver.transcription.foh_subproblem import FohSubproblem
 from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
 from worker.solver.warmup import warm_up

@@ -10,7 +10,7 @@ import numpy as np
 from worker.solver.conic import ConicSolution
 from worker.solver.methods.foh_ptr.linearizer import defect
 from worker.solver.scp.history import IterationRecord, solver_fields
-from worker.solver.transcription.foh_subproblem import SubproblemData
+from worker.solver.transcription.foh_data import SubproblemData
 
 if TYPE_CHECKING:
     from worker.solver.methods.foh_ptr.method import FohIterate, FohPtr
