@@ -7,17 +7,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from worker.solver.aerodynamics import (
-    AeroModel,
+from worker.solver.aero_models import AeroModel, ParabolicPolarAero, PolynomialAero
+from worker.solver.aero_tables import TableAero
+from worker.solver.aerodynamics import aero_from_spec, alpha_schedule_from_spec
+from worker.solver.alpha_schedules import (
     AlphaSchedule,
     ConstantAlpha,
-    ParabolicPolarAero,
-    PolynomialAero,
-    TableAero,
     TableAlpha,
     VelocityScheduleAlpha,
-    aero_from_spec,
-    alpha_schedule_from_spec,
 )
 
 STEP = 1e-30  # complex step: no subtractive cancellation, so the step can be tiny

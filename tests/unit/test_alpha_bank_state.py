@@ -15,7 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from worker.solver.aerodynamics import ConstantAlpha, PolynomialAero, VelocityScheduleAlpha
+from worker.solver.aero_models import PolynomialAero
+from worker.solver.alpha_schedules import ConstantAlpha, VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
 from worker.solver.forces import VehicleForces
 from worker.solver.models.alpha_bank_state import ALPHA, alpha_bank_state_dynamics

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from worker.solver.aerodynamics import PolynomialAero, VelocityScheduleAlpha
+from worker.solver.aero_models import PolynomialAero
+from worker.solver.alpha_schedules import VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
 from worker.solver.dynamics import energy_dynamics, time_dynamics
 from worker.solver.forces import VehicleForces

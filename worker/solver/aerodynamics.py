@@ -2,7 +2,7 @@
 
 The models live in ``aero_models`` (interface, polynomial, parabolic polar), ``aero_tables``
 (tabulated CL/CD) and ``alpha_schedules``; this module builds them from a schema object or a
-plain dict and re-exports them under their established import path.
+plain dict.
 """
 
 from __future__ import annotations
@@ -10,12 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from worker.solver.aero_models import (
-    AeroCoefficients,
-    AeroModel,
-    ParabolicPolarAero,
-    PolynomialAero,
-)
+from worker.solver.aero_models import AeroModel, ParabolicPolarAero, PolynomialAero
 from worker.solver.aero_tables import TableAero
 from worker.solver.alpha_schedules import (
     AlphaSchedule,
@@ -23,20 +18,6 @@ from worker.solver.alpha_schedules import (
     TableAlpha,
     VelocityScheduleAlpha,
 )
-
-__all__ = [
-    "AeroCoefficients",
-    "AeroModel",
-    "AlphaSchedule",
-    "ConstantAlpha",
-    "ParabolicPolarAero",
-    "PolynomialAero",
-    "TableAero",
-    "TableAlpha",
-    "VelocityScheduleAlpha",
-    "aero_from_spec",
-    "alpha_schedule_from_spec",
-]
 
 _MISSING = object()
 

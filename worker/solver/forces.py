@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.aerodynamics import AeroModel, AlphaSchedule
+from worker.solver.aero_models import AeroModel
+from worker.solver.alpha_schedules import AlphaSchedule
 from worker.solver.atmosphere import Atmosphere
 from worker.solver.units import Scales
 

@@ -16,7 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
-from worker.solver.aerodynamics import ConstantAlpha, PolynomialAero, VelocityScheduleAlpha
+from worker.solver.aero_models import PolynomialAero
+from worker.solver.alpha_schedules import ConstantAlpha, VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
 from worker.solver.forces import VehicleForces
 from worker.solver.models import eom
