@@ -13,8 +13,8 @@ import pytest
 from worker.solver.aero_models import PolynomialAero
 from worker.solver.alpha_schedules import VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
-from worker.solver.dynamics import energy_dynamics, time_dynamics
 from worker.solver.forces import VehicleForces
+from worker.solver.models.point_mass import energy_dynamics, time_dynamics
 from worker.solver.units import Scales
 
 STEP = 1e-30

@@ -8,9 +8,9 @@ import pytest
 from worker.solver.aero_models import PolynomialAero
 from worker.solver.alpha_schedules import VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
-from worker.solver.dynamics import time_dynamics
 from worker.solver.forces import VehicleForces
-from worker.solver.scalar_rates import time_rates
+from worker.solver.models.point_mass import time_dynamics
+from worker.solver.models.scalar_rates import time_rates
 from worker.solver.units import Scales
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics import EnergyDerivatives, EnergyRates
+from worker.solver.models.point_mass import EnergyDerivatives, EnergyRates
 from worker.solver.path_limits import PathValues, path_values
 from worker.solver.problem import EntryProblem
 

@@ -23,10 +23,10 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from worker.solver.constraints.no_fly import zone_distance
-from worker.solver.dynamics import time_dynamics
+from worker.solver.models.point_mass import time_dynamics
+from worker.solver.models.scalar_rates import time_rates
 from worker.solver.path_limits import path_values
 from worker.solver.problem import STATE_NAMES, EntryProblem, TerminalTarget
-from worker.solver.scalar_rates import time_rates
 from worker.solver.trajectory import Array, OptimizedTrajectory, bank_profile
 
 StopCheck = Callable[[], bool]

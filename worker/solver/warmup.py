@@ -11,9 +11,8 @@ import time
 
 import numpy as np
 
-from worker.solver import scalar_rates
 from worker.solver.constraints import path_compiled
-from worker.solver.models import bank_state_sweeps
+from worker.solver.models import bank_state_sweeps, scalar_rates
 from worker.solver.transcription import foh_hessian
 
 _warmed = False

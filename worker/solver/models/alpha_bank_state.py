@@ -2,7 +2,7 @@
 
 State z = [r, theta, phi, V, gamma, psi, sigma, alpha] (``layout.ALPHA_BANK_STATE``; alpha in
 radians like every angle state), control w = [d sigma / dt, d alpha / dt] (the Shuttle problems,
-paper 003). The point-mass part is ``dynamics.time_dynamics`` (``models.eom``) with the lift
+paper 003). The point-mass part is ``models.point_mass.time_dynamics`` (``models.eom``) with the lift
 scaled by u = (cos sigma, sin sigma) and the forces evaluated at the state's alpha: CL(alpha),
 CD(alpha) and their slopes from the aerodynamic model, no alpha schedule. Time-dilated on a
 normalized interval of length s like the bank-state model: F = s f(z, w) (paper 002 eq. 10),
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worker.solver.dynamics import GA, PS, V, time_dynamics
 from worker.solver.forces import ForceTerms, VehicleForces
 from worker.solver.models.layout import ALPHA_BANK_STATE
+from worker.solver.models.point_mass import GA, PS, V, time_dynamics
 
 Array = np.ndarray
 

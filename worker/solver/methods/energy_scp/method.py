@@ -20,17 +20,17 @@ import numpy as np
 
 from app.schemas.methods import EnergyScpOptions
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
-from worker.solver.dynamics import (
-    EnergyDerivatives,
-    energy_dynamics,
-    energy_rates,
-    time_state_from_energy,
-)
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
 from worker.solver.models.layout import ENERGY
+from worker.solver.models.point_mass import (
+    EnergyDerivatives,
+    energy_dynamics,
+    energy_rates,
+    time_state_from_energy,
+)
 from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from worker.solver.dynamics import EnergyDerivatives, EnergyRates
+from worker.solver.models.point_mass import EnergyDerivatives, EnergyRates
 from worker.solver.objectives import (
     RUNNING_COSTS,
     TERMINAL_COSTS,
