@@ -121,7 +121,7 @@ class CvxpyBackend:
             with warnings.catch_warnings():
                 # The mapped status already says "inaccurate"; cvxpy's warning would only repeat it.
                 warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-                model.solve(solver=self.solver, **options)
+                model.solve(solver=self.solver, **options)  # type: ignore[no-untyped-call]  # cvxpy leaves solve untyped
             raw_status = str(model.status)
             stats = model.solver_stats
         except cp.error.SolverError as exc:
