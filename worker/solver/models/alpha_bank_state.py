@@ -2,13 +2,12 @@
 
 State z = [r, theta, phi, V, gamma, psi, sigma, alpha] (``layout.ALPHA_BANK_STATE``; alpha in
 radians like every angle state), control w = [d sigma / dt, d alpha / dt] (the Shuttle problems,
-paper 003). The point-mass part is ``models.point_mass.time_dynamics`` (``models.eom``) with the lift
-scaled by u = (cos sigma, sin sigma) and the forces evaluated at the state's alpha: CL(alpha),
+paper 003). The point-mass part is ``models.point_mass.time_dynamics`` (``models.eom``) with the
+lift scaled by u = (cos sigma, sin sigma) and the forces evaluated at the state's alpha: CL(alpha),
 CD(alpha) and their slopes from the aerodynamic model, no alpha schedule. Time-dilated on a
-normalized interval of length s like the bank-state model: F = s f(z, w) (paper 002 eq. 10),
-A = dF/dz = s df/dz (8 x 8), B = dF/dw = s df/dw (8 x 2), S = dF/ds = f (eq. 14). Vectorized
-over nodes and complex-safe (complex-step tests) when the force models are.
-"""
+normalized interval of length s like the bank-state model: F = s f(z, w) (paper 002 eq. 10), A =
+dF/dz = s df/dz (8 x 8), B = dF/dw = s df/dw (8 x 2), S = dF/ds = f (eq. 14). Vectorized over nodes
+and complex-safe (complex-step tests) when the force models are."""
 
 from __future__ import annotations
 

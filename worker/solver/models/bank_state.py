@@ -1,11 +1,10 @@
 """Time-domain entry dynamics with the bank angle as a state and its rate as the control.
 
-State z = [r, theta, phi, V, gamma, psi, sigma], control w = d(sigma)/dt (paper 002 sec. 2.2:
-bank and bank rate bounded). Built on ``models.point_mass.time_dynamics`` with u = (cos sigma, sin sigma),
-so the point-mass equations and their analytic Jacobians are not duplicated. The time-dilated
-form on a normalized interval tau in [0, 1] of length s is F = s f(z, w) (paper 002 eq. 10), with
-A = dF/dz = s df/dz, B = dF/dw = s df/dw and S = dF/ds = f (eq. 14).
-"""
+State z = [r, theta, phi, V, gamma, psi, sigma], control w = d(sigma)/dt (paper 002 sec. 2.2: bank
+and bank rate bounded). Built on ``models.point_mass.time_dynamics`` with u = (cos sigma, sin
+sigma), so the point-mass equations and their analytic Jacobians are not duplicated. The
+time-dilated form on a normalized interval tau in [0, 1] of length s is F = s f(z, w) (paper 002 eq.
+10), with A = dF/dz = s df/dz, B = dF/dw = s df/dw and S = dF/ds = f (eq. 14)."""
 
 from __future__ import annotations
 

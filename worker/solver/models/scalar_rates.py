@@ -1,7 +1,7 @@
 """The time-domain equations of motion for ONE state, in plain floats, for the integrator.
 
-``models.point_mass.time_dynamics`` is vectorized over nodes and carries Jacobians; called with a single
-state by an adaptive integrator (tens of thousands of calls per verification) its numpy
+``models.point_mass.time_dynamics`` is vectorized over nodes and carries Jacobians; called with a
+single state by an adaptive integrator (tens of thousands of calls per verification) its numpy
 overhead dominates. This is ``models.eom`` (paper 000 eq. 1 in time form) compiled by numba for
 floats, in the scalar form (divisions, each rate's rotation terms summed first); tests hold it
 equal to ``time_dynamics`` to round-off.
