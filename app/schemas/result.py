@@ -49,8 +49,11 @@ class Failure(_Record):
 
     code: str = Field(
         ...,
-        description="e.g. infeasible, numerical_error, max_iterations, time_limit, "
-        "verification_failed, cancelled, invalid_problem, unsupported_by_method.",
+        description="diverged (a step over the physical bounds of one iteration, or "
+        "non-finite numbers), infeasible (which constraint, where, by how much), "
+        "numerical_error, max_iterations, time_limit, verification_failed, cancelled, "
+        "path_limits_infeasible, invalid_problem, unsupported_by_method "
+        "(docs/problem-contract.md lists when each is given).",
     )
     message: str = Field(..., description="What happened, for people.")
 
@@ -323,12 +326,18 @@ class ResultDocument(_Record):
     """Trajectory with units, objective, verification, convergence history, timing, provenance."""
 
     schema_version: Literal["1.0"] = "1.0"
-    status: ResultStatus
+    status: ResultStatus = Field(
+        ...,
+        description="succeeded only when the SCP converged and the verification passed; "
+        "failed, cancelled or timed_out otherwise, with failure.",
+    )
     failure: Failure | None = None
     method: str = Field(..., description="The method that solved the problem.")
     objective: ObjectiveValue | None = None
     trajectory: Trajectory | None = Field(
-        None, description="The optimizer's nodes; absent when the solve produced none."
+        None,
+        description="The optimizer's nodes; absent when the solve produced none or its last "
+        "iterate held non-finite values (failure says where).",
     )
     verification: Verification | None = Field(
         None,

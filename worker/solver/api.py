@@ -15,7 +15,13 @@ from app.schemas.result import json_ready
 from worker.solver.methods import METHODS, check_support
 from worker.solver.objectives import UNITS
 from worker.solver.problem import build_problem
-from worker.solver.result import provenance, trajectory_columns, validated
+from worker.solver.result import (
+    node_violations,
+    non_finite_entries,
+    provenance,
+    trajectory_columns,
+    validated,
+)
 from worker.solver.scp.history import IterationRecord
 from worker.solver.verification import VerificationStoppedError, verify
 
@@ -71,6 +77,71 @@ def _objective(terms: dict[str, float], report: dict[str, Any] | None) -> dict[s
     }
 
 
+def _fail(document: dict[str, Any], code: str, message: str) -> None:
+    """Turn ``document`` into a failed result with ``code`` and ``message``."""
+    document["status"] = "failed"
+    document["failure"] = {"code": code, "message": message}
+
+
+def _broken_code(code: str | None) -> str:
+    """The failure code of a result whose numbers are not finite: the driver's own when it
+    names a breakdown, else numerical_error."""
+    return code if code in ("diverged", "numerical_error") else "numerical_error"
+
+
+def _broken_message(failure: dict[str, str] | None, where: list[str]) -> str:
+    """What is non-finite, after the driver's message; the verification was skipped."""
+    lead = f"{failure['message']}; " if failure and failure["message"] else ""
+    shown = ", ".join(where[:6]) + (f" and {len(where) - 6} more" if len(where) > 6 else "")
+    return (
+        f"{lead}the last iterate holds non-finite values ({shown}); no trajectory is reported "
+        "and the verification was skipped"
+    )
+
+
+def _judge(
+    document: dict[str, Any],
+    report: dict[str, Any] | None,
+    violations: list[str],
+    driver_message: str | None,
+) -> None:
+    """The honest status of a result with a finite trajectory: cancelled when the verification
+    was stopped; ``infeasible`` (which constraint, where, by how much) when the run converged
+    or used its budget with constraints unmet at the nodes; ``verification_failed`` when it
+    converged and the propagated controls violate; a failed verification of a failed result
+    is named in its message; non-finite verification numbers fail the result."""
+    if report is None:
+        _fail(
+            document,
+            "cancelled",
+            "stopped during the verification; the trajectory is the last iterate and was not "
+            "verified",
+        )
+        document["status"] = "cancelled"
+        return
+    broken = non_finite_entries(report, "verification")
+    if broken:
+        _fail(
+            document,
+            "numerical_error",
+            "the propagation of the controls gave non-finite values ("
+            + ", ".join(broken[:6])
+            + ")",
+        )
+        return
+    reasons = _verification_failures(report) if not report["feasible"] else []
+    if violations:
+        lead = driver_message or "converged"
+        tail = f"; the propagated controls violate: {'; '.join(reasons)}" if reasons else ""
+        _fail(document, "infeasible", f"{lead}, infeasible: {'; '.join(violations)}{tail}")
+    elif document["status"] == "succeeded" and reasons:
+        _fail(
+            document,
+            "verification_failed",
+            "converged, but the propagated controls violate: " + "; ".join(reasons),
+        )
+
+
 def solve_problem(
     problem: ProblemDocument,
     *,
@@ -102,8 +173,10 @@ def solve_problem(
             }
         )
     model = build_problem(problem)
+    streamed: list[IterationRecord] = []
 
     def forward(record: IterationRecord) -> None:
+        streamed.append(record)
         if on_iteration is not None:
             on_iteration(json_ready(record.as_dict()))
 
@@ -118,45 +191,47 @@ def solve_problem(
         if status != "succeeded"
         else None
     )
+    history = outcome.history
+    if outcome.failure_code == "diverged":  # the diverging record is streamed, not judged
+        history = history + streamed[len(history) :]
     document: dict[str, Any] = {
         "status": status,
         "failure": failure,
         "method": method,
-        "history": [r.as_dict() for r in outcome.history],
+        "history": [r.as_dict() for r in history],
         "provenance": provenance(model, problem.method),
     }
     verification_s = 0.0
     if outcome.trajectory is not None:
         traj = outcome.trajectory
-        document["trajectory"] = trajectory_columns(model, traj)
-        if on_phase is not None:
-            on_phase("verifying")
-        v_start = time.perf_counter()
-        try:
-            report: dict[str, Any] | None = verify(model, traj, should_stop=should_stop)
-        except VerificationStoppedError:
-            report = None
-        verification_s = time.perf_counter() - v_start
-        document["verification"] = report
-        document["objective"] = _objective(outcome.objective_terms, report)
-        if report is None:
-            document["status"] = "cancelled"
-            document["failure"] = {
-                "code": "cancelled",
-                "message": "stopped during the verification; the trajectory is the last "
-                "iterate and was not verified",
-            }
-        elif status == "succeeded" and not report["feasible"]:
-            document["status"] = "failed"
-            document["failure"] = {
-                "code": "verification_failed",
-                "message": "converged, but the propagated controls violate: "
-                + "; ".join(_verification_failures(report)),
-            }
+        columns = trajectory_columns(model, traj)
+        document["objective"] = _objective(outcome.objective_terms, None)
+        broken = non_finite_entries({"trajectory": columns, "objective": document["objective"]})
+        if broken:
+            _fail(document, _broken_code(outcome.failure_code), _broken_message(failure, broken))
+        else:
+            document["trajectory"] = columns
+            if on_phase is not None:
+                on_phase("verifying")
+            v_start = time.perf_counter()
+            try:
+                report: dict[str, Any] | None = verify(model, traj, should_stop=should_stop)
+            except VerificationStoppedError:
+                report = None
+            verification_s = time.perf_counter() - v_start
+            document["verification"] = report
+            document["objective"] = _objective(outcome.objective_terms, report)
+            last = outcome.history[-1] if outcome.history else None
+            violations = (
+                node_violations(model, traj, last)
+                if outcome.status in ("converged", "max_iterations")
+                else []
+            )
+            _judge(document, report, violations, outcome.failure_message)
     document["timing"] = {
         "wall_s": wall,
         "conic_solve_s": outcome.conic_solve_s,
-        "iterations": len(outcome.history),
+        "iterations": len(history),
         "verification_s": verification_s,
         "total_s": time.perf_counter() - start,
     }

@@ -1,7 +1,9 @@
-"""Assemble the result document from an optimized trajectory, its verification and history."""
+"""Assemble the result document from an optimized trajectory, its verification and history, and
+say honestly what is wrong with it: non-finite values, constraints the nodes do not meet."""
 
 from __future__ import annotations
 
+import math
 import platform
 import sys
 from datetime import UTC, datetime
@@ -12,10 +14,14 @@ import numpy as np
 
 from app.schemas.methods import ScpRunOptions
 from app.schemas.result import ResultDocument, json_ready
+from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
+from worker.solver.scp.history import IterationRecord
+from worker.solver.scp.loop import VIRTUAL_CONTROL_TOL
 from worker.solver.trajectory import OptimizedTrajectory
+from worker.solver.verification import VerificationTolerances
 
 UNITS = {
     "time_s": "s",
@@ -107,3 +113,70 @@ def validated(document: dict[str, Any]) -> dict[str, Any]:
     clean: dict[str, Any] = json_ready(document)
     ResultDocument.model_validate(clean)
     return clean
+
+
+def non_finite_entries(value: Any, path: str = "") -> list[str]:
+    """Where ``value`` (numbers, arrays, dicts and lists of them) holds NaN or infinity: each
+    entry's dotted path and how many values there are non-finite (a list counts once)."""
+    if isinstance(value, bool | int | str) or value is None:
+        return []
+    if isinstance(value, float):
+        return [] if math.isfinite(value) else [path]
+    if isinstance(value, dict):
+        inner = ((f"{path}.{k}".lstrip("."), v) for k, v in value.items())
+        return [e for where, v in inner for e in non_finite_entries(v, where)]
+    if isinstance(value, list | tuple | np.ndarray):
+        flat = np.asarray(value, dtype=object).ravel()
+        numbers = [v for v in flat if isinstance(v, float | np.floating)]
+        bad = sum(1 for v in numbers if not math.isfinite(float(v)))
+        nested = [e for v in flat if isinstance(v, dict) for e in non_finite_entries(v, path)]
+        return ([f"{path} ({bad} of {flat.size} values)"] if bad else []) + nested
+    if isinstance(value, np.floating):
+        return [] if math.isfinite(float(value)) else [path]
+    return []
+
+
+def node_violations(
+    problem: EntryProblem,
+    traj: OptimizedTrajectory,
+    record: IterationRecord | None,
+    tolerances: VerificationTolerances | None = None,
+) -> list[str]:
+    """What the reported nodes do not meet, with where and by how much: virtual control that
+    did not vanish (the last iteration's norm over ``VIRTUAL_CONTROL_TOL``), a no-fly zone
+    entered or a path limit exceeded at a node by more than the verification accepts (the same
+    margins, so a result is not called infeasible for what verification tolerates)."""
+    tol = tolerances or VerificationTolerances()
+    sc = problem.scales
+    out: list[str] = []
+    if record is not None and record.virtual_control_norm > VIRTUAL_CONTROL_TOL:
+        out.append(
+            f"virtual control did not vanish (norm {record.virtual_control_norm:.3g} at "
+            f"iteration {record.iteration}, tolerance {VIRTUAL_CONTROL_TOL:g})"
+        )
+    y = traj.y
+    t_s = traj.t * sc.time_s + problem.t0
+    for k, zone in enumerate(problem.no_fly_zones):
+        clearance = np.degrees(zone_distance(y[:, 2], y[:, 1], zone).c - zone.radius)
+        node = int(np.argmin(clearance))
+        if clearance[node] < -tol.no_fly_zone_deg:
+            name = f" ({zone.name})" if zone.name else ""
+            out.append(
+                f"no-fly zone {k}{name} penetrated by {-clearance[node]:.3g} deg at "
+                f"t = {t_s[node]:.1f} s (node {node})"
+            )
+    ft = problem.forces.terms(y[:, 0], y[:, 3], traj.alpha_deg)
+    pv = path_values(problem.forces, problem.heat_model, y[:, 0], y[:, 3], ft)
+    lim = problem.limits
+    for label, values, limit in (
+        ("heat rate", pv.heat_rate if problem.heat_model else None, lim.heat_max_W_m2),
+        ("dynamic pressure", pv.dynamic_pressure, lim.dynamic_pressure_max_Pa),
+        ("load factor", pv.load_factor, lim.load_factor_max_g),
+    ):
+        if values is None or limit is None:
+            continue
+        node = int(np.argmax(values))
+        ratio = float(values[node]) / limit
+        if ratio > 1.0 + tol.path_limit_relative:
+            out.append(f"{label} {ratio:.4f} of its limit at t = {t_s[node]:.1f} s (node {node})")
+    return out

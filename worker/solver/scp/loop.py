@@ -8,6 +8,10 @@ solution into a proposal (candidate reference + history record) and has the meth
 an accepted proposal becomes the reference, a rejected one leaves the reference where it was
 (the method's judgement may hand back its linearization again). The driver declares
 convergence only for an accepted step the method calls small whose virtual control is spent.
+A proposal that diverges (non-finite numbers, or a step over the physical bounds of
+``scp.divergence``) ends the run as ``failed`` with code ``diverged`` before the method judges
+it: the reference stays the last sound one, so what is reported is finite. A subproblem with
+non-finite data (a linearization that broke down) ends it as ``numerical_error``.
 The shape follows the usual SCP solver structure (e.g. the PTR and SCvx drivers of
 SCPToolbox.jl): one loop, the method's numerics behind hooks.
 """
@@ -20,7 +24,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Generic, Literal, Protocol, TypeVar
 
+import numpy as np
+
 from worker.solver.conic import ConeProblem, ConicBackend, ConicSolution, ConicStatus
+from worker.solver.scp.divergence import divergence
 from worker.solver.scp.history import IterationRecord
 
 ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed_out"]
@@ -111,7 +118,12 @@ class ScpMethod(Protocol[Ref, Lin]):
 
 @dataclass
 class ScpOutcome(Generic[Ref]):
-    """What the driver produced: the status, the last reference and the history."""
+    """What the driver produced: the status, the last reference and the history.
+
+    ``history`` holds the records of the proposals the method judged; a diverging proposal's
+    record is emitted (``on_iteration``) and kept in ``diverged`` instead, so that whatever a
+    method reads from the history describes the reference it reports.
+    """
 
     status: ScpStatus
     reference: Ref | None
@@ -120,6 +132,7 @@ class ScpOutcome(Generic[Ref]):
     failure_message: str | None = None
     conic_solve_s: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+    diverged: IterationRecord | None = None
 
 
 @dataclass(frozen=True)
@@ -140,6 +153,18 @@ def conic_limit(remaining_s: float, cap_s: float | None) -> float:
 
 
 _FAILURE_CODES = {ConicStatus.INFEASIBLE: "infeasible", ConicStatus.TIME_LIMIT: "time_limit"}
+
+
+def _non_finite_data(problem: ConeProblem) -> str | None:
+    """The first of the conic problem's data arrays that holds NaN or infinity, or None (the
+    backend would refuse such data with an exception)."""
+    arrays = [("q", problem.q), ("b", problem.b), ("A", problem.A.data)]
+    if problem.P is not None:
+        arrays.append(("P", problem.P.data))
+    for name, values in arrays:
+        if not np.isfinite(values).all():
+            return name
+    return None
 
 
 def run_scp(
@@ -191,6 +216,14 @@ def run_scp(
         if linearization is None:
             linearization = method.linearize(reference)
         problem = method.subproblem(reference, linearization, it)
+        broken = _non_finite_data(problem)
+        if broken is not None:
+            return outcome(
+                "failed",
+                "numerical_error",
+                f"iteration {it}: the subproblem about the reference has non-finite {broken} "
+                "(the linearization broke down)",
+            )
         limit = conic_limit(remaining, budget.conic_time_limit_s)
         solution = method.solve(problem, conic, limit, deadline)
         if not solution.status.usable or solution.x is None:
@@ -202,6 +235,14 @@ def run_scp(
                 f"({solution.solver}: {solution.raw_status})",
             )
         proposal = method.propose(reference, linearization, solution, it)
+        diverged = divergence(proposal.reference, proposal.record)
+        if diverged is not None:
+            proposal.record.iteration_wall_s = time.perf_counter() - it_start
+            if on_iteration is not None:
+                on_iteration(proposal.record)
+            done = outcome("failed", "diverged", f"diverged at {diverged}")
+            done.diverged = proposal.record
+            return done
         verdict = method.judge(reference, proposal)
         if verdict.accepted:
             reference = verdict.reference if verdict.reference is not None else proposal.reference

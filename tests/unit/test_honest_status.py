@@ -1,0 +1,174 @@
+"""Honest statuses: a diverging run ends as ``diverged`` with its history and a finite, valid
+result; a constraint the run cannot meet is reported as ``infeasible`` with which constraint,
+where and by how much; no result holds a non-finite number.
+
+No numerical tolerance is compared against a reference here: the checks are on statuses, codes,
+messages and finiteness. The divergence case is a user's variant of paper 000's case (heat-rate
+limit 700 kW/m^2, hard terminal point 20 deg E, 60 deg N, 41 nodes) whose second step moved the
+longitude by 523 deg; before the divergence check it ended in an uncaught ValueError (the next
+subproblem had non-finite data). The infeasible case puts a 15 deg zone across the path of paper
+002's case 1, which the vehicle cannot fly around.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import warnings
+from typing import Any
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from app.schemas import ProblemDocument
+from worker.solver.api import solve_problem
+from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
+from worker.solver.conic.problem import ConeSpec
+from worker.solver.scenarios import get_scenario
+from worker.solver.scp.divergence import STEP_BOUNDS, divergence
+from worker.solver.scp.history import IterationRecord
+from worker.solver.scp.loop import Budget, Judgement, Proposal, ScpOutcome, run_scp
+
+
+def _finite_json(document: dict[str, Any]) -> None:
+    """The document is strict JSON: no NaN or infinity anywhere."""
+    json.dumps(document, allow_nan=False)
+
+
+def _record(iteration: int, change: dict[str, float]) -> IterationRecord:
+    return IterationRecord(
+        iteration=iteration,
+        cost=0.0,
+        cost_terms={},
+        objective_value=None,
+        max_state_change=change,
+        trust_region_slack=0.0,
+        virtual_control_norm=0.0,
+        linearization_error=0.0,
+        nodes_post_corrected=0,
+        relaxation_gap=0.0,
+        conic_status="optimal",
+        conic_solver="fake",
+        conic_solve_s=0.0,
+        conic_setup_s=0.0,
+        iteration_wall_s=0.0,
+    )
+
+
+class _Backend:
+    """Answers every problem with the zero vector (the fake method ignores it)."""
+
+    def solve(self, problem: ConeProblem, time_limit_s: float | None = None) -> ConicSolution:
+        return ConicSolution(np.zeros(problem.n), ConicStatus.OPTIMAL, "ok", 0.0, 0.0, 1, 0.0, "f")
+
+
+class _Steps:
+    """A fake method whose k-th proposal moves the altitude by ``steps[k]`` metres."""
+
+    def __init__(self, steps: list[float], q: float = 1.0) -> None:
+        self.steps, self.q = steps, q
+
+    def start(self) -> np.ndarray:
+        return np.zeros(3)
+
+    def linearize(self, reference: np.ndarray) -> None:
+        return None
+
+    def subproblem(self, reference: np.ndarray, lin: None, iteration: int) -> ConeProblem:
+        return ConeProblem(
+            None, np.array([self.q]), sp.csc_matrix(np.eye(1)), np.ones(1), ConeSpec(0, 1)
+        )
+
+    def solve(self, problem: ConeProblem, conic: Any, limit_s: float, deadline: float) -> Any:
+        return conic(problem, limit_s)
+
+    def propose(self, ref: np.ndarray, lin: None, sol: ConicSolution, it: int) -> Proposal[Any]:
+        step = self.steps[it - 1]
+        return Proposal(ref + step, _record(it, {"altitude_m": step, "bank_deg": 170.0}))
+
+    def judge(self, ref: np.ndarray, proposal: Proposal[Any]) -> Judgement[Any, None]:
+        return Judgement(accepted=True)
+
+
+def _run(method: _Steps, sink: list[IterationRecord]) -> ScpOutcome[Any]:
+    return run_scp(method, Budget(5, 60.0), _Backend(), on_iteration=sink.append)
+
+
+def test_driver_ends_a_diverging_run_keeping_the_last_sound_reference() -> None:
+    sink: list[IterationRecord] = []
+    outcome = _run(_Steps([1e3, 2e3, 3e5, 1.0, 1.0]), sink)
+    assert (outcome.status, outcome.failure_code) == ("failed", "diverged")
+    assert "iteration 3" in (outcome.failure_message or "")
+    assert "altitude_m by 3e+05" in (outcome.failure_message or "")
+    assert [r.iteration for r in outcome.history] == [1, 2]  # the judged ones
+    assert outcome.diverged is sink[-1] and sink[-1].iteration == 3  # emitted, with the size
+    np.testing.assert_array_equal(outcome.reference, np.full(3, 3e3))  # not the diverged one
+
+
+def test_driver_calls_a_non_finite_candidate_diverged() -> None:
+    sink: list[IterationRecord] = []
+    outcome = _run(_Steps([1.0, math.nan]), sink)
+    assert outcome.failure_code == "diverged" and "non-finite" in (outcome.failure_message or "")
+    assert np.isfinite(outcome.reference).all()
+
+
+def test_driver_fails_a_subproblem_with_non_finite_data_by_name() -> None:
+    outcome = _run(_Steps([1.0], q=math.inf), [])
+    assert (outcome.status, outcome.failure_code) == ("failed", "numerical_error")
+    assert "non-finite q" in (outcome.failure_message or "")
+
+
+def test_bank_reversals_and_steps_within_bounds_are_not_divergence() -> None:
+    within = {name: 0.99 * bound for name, bound in STEP_BOUNDS.items()}
+    assert divergence(None, _record(1, {**within, "bank_deg": 160.0})) is None
+    over = divergence(None, _record(4, {**within, "heading_deg": 91.0}))
+    assert over is not None and "iteration 4" in over and "heading_deg by 91" in over
+
+
+def _heat_limited_hard_point(nodes: int) -> dict[str, Any]:
+    doc = copy.deepcopy(get_scenario("rlv-min-heat-load").problem)
+    doc["method"]["nodes"] = nodes
+    doc["path_constraints"]["heat_rate"]["max_W_m2"] = 7.0e5
+    doc["terminal"]["longitude_deg"] = 20.0
+    doc["terminal"]["latitude_deg"] = 60.0
+    return doc
+
+
+@pytest.mark.slow
+def test_energy_divergence_is_a_failed_result_not_a_traceback() -> None:
+    streamed: list[dict[str, Any]] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # the diverged iterate's sqrt of < 0
+        doc = ProblemDocument.model_validate(_heat_limited_hard_point(41))
+        result = solve_problem(doc, on_iteration=streamed.append)
+    _finite_json(result)
+    assert result["status"] == "failed"
+    assert result["failure"]["code"] == "diverged"
+    message = result["failure"]["message"]
+    assert "iteration 2" in message and "longitude_deg" in message
+    history = result["history"]
+    assert len(history) == 2 and history == streamed  # the diverging record included
+    assert history[-1]["max_state_change"]["longitude_deg"] > STEP_BOUNDS["longitude_deg"]
+    assert result["timing"]["iterations"] == 2
+    trajectory = result["trajectory"]  # the last sound iterate, every value finite
+    assert all(v is not None for v in trajectory["longitude_deg"] + trajectory["time_s"])
+    assert result["verification"] is not None
+
+
+@pytest.mark.slow
+def test_an_unavoidable_zone_is_reported_infeasible_with_where_and_how_much() -> None:
+    doc = copy.deepcopy(get_scenario("rlv-max-terminal-velocity").problem)
+    doc["no_fly_zones"] = [
+        {"name": "wall", "center_latitude_deg": 20, "center_longitude_deg": 0, "radius_deg": 15}
+    ]
+    result = solve_problem(ProblemDocument.model_validate(doc))
+    _finite_json(result)
+    assert result["status"] == "failed"
+    assert result["failure"]["code"] == "infeasible"
+    message = result["failure"]["message"]
+    assert message.startswith("not converged in 30 iterations, infeasible:")
+    assert "virtual control did not vanish (norm" in message
+    assert "no-fly zone 0 (wall) penetrated by" in message and "deg at t = " in message
+    assert result["verification"]["no_fly_zones"][0]["within"] is False
