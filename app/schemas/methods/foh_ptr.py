@@ -26,6 +26,16 @@ class FohStopTolerance(BoundedOptions):
     )
     heading_deg: float = Field(0.05, gt=0, description="Heading change tolerance, deg.")
     bank_deg: float = Field(2.0, gt=0, description="Bank angle change tolerance, deg.")
+    bank_dynamic_pressure_fraction: float = Field(
+        0.01,
+        ge=0,
+        lt=1,
+        description="The bank tolerance applies only at nodes whose dynamic pressure is at least "
+        "this fraction of the iterate's peak: the bank turns the lift, which scales with the "
+        "dynamic pressure, so below 1 % of the peak a bank change redirects under 1 % of the "
+        "peak lift and swings there (the thin early arc) move no state beyond its own "
+        "tolerance; 0 tests the bank at every node.",
+    )
     interval_s: float = Field(2.0, gt=0, description="Interval length change tolerance, s.")
     relative_cost: float = Field(
         1e-3, gt=0, description="Relative change of the objective below which it has settled."
@@ -70,16 +80,24 @@ class FohPtrOptions(ScpRunOptions):
         "integration (exact_foh only). The paper imposes them at the nodes only; see "
         "docs/methods/foh-ptr.md.",
     )
-    interval_min_s: float = Field(
-        10.0, gt=0, description="Shortest interval of the adaptive grid (Delta_min), s."
-    )
-    interval_max_s: float = Field(
-        150.0, gt=0, description="Longest interval of the adaptive grid (Delta_max), s."
-    )
-    interval_trust_s: float = Field(
-        50.0,
+    interval_min_s: float | None = Field(
+        None,
         gt=0,
-        description="Largest change of an interval length per iteration (DeltaT_max), s.",
+        description="Shortest interval of the adaptive grid (Delta_min), s; none = paper 002's "
+        "10 s as a multiple of its mean interval (1600 s / 39): 0.244 t_f / N (10 s for the "
+        "paper's 40 nodes, 1.0 s for 400).",
+    )
+    interval_max_s: float | None = Field(
+        None,
+        gt=0,
+        description="Longest interval of the adaptive grid (Delta_max), s; none = paper 002's "
+        "150 s as a multiple of its mean interval: 3.66 t_f / N.",
+    )
+    interval_trust_s: float | None = Field(
+        None,
+        gt=0,
+        description="Largest change of an interval length per iteration (DeltaT_max), s; none = "
+        "paper 002's 50 s as a multiple of its mean interval: 1.22 t_f / N.",
     )
     weight_trust_region: float = Field(
         0.1,

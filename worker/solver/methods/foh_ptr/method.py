@@ -27,6 +27,7 @@ from worker.solver.conic import ConeProblem, ConicSolution
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
+from worker.solver.methods.foh_ptr.support import grid_factor, interval_bounds
 from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
@@ -45,6 +46,10 @@ Linearization = tuple[SubproblemData, Array]
 DIFFERENCE_STEP = 1e-5
 """Step of the Hessian's forward differences in scaled subproblem units (1 cm of altitude, about
 0.02 m/s of speed): truncation error ~1e-5 relative, rounding ~1e-11."""
+
+INTERVAL_SCALE_S = 10.0
+"""Unit of the scaled interval changes at paper 002's mean interval (1600 s / 39), scaled with
+the mean interval: a unit step moves a node about as far whatever the node count."""
 
 
 @dataclass
@@ -84,11 +89,13 @@ class FohPtr:
         sc = problem.scales
         self.scale = layout.trust_units(sc)
         self.lin = Linearizer(problem, options, self.scale)
+        span_s = problem.final_time * sc.time_s
+        lo, hi, trust = interval_bounds(options, span_s)
         grid = (
             GridLimits(
-                delta_min=options.interval_min_s / sc.time_s,
-                delta_max=options.interval_max_s / sc.time_s,
-                delta_trust=options.interval_trust_s / sc.time_s,
+                delta_min=lo / sc.time_s,
+                delta_max=hi / sc.time_s,
+                delta_trust=trust / sc.time_s,
                 final_time=problem.final_time,
             )
             if options.grid == "adaptive"
@@ -99,7 +106,7 @@ class FohPtr:
             options.nodes,
             state_scale=self.scale,
             rate_scale=math.radians(1.0) * sc.time_s,
-            interval_scale=10.0 / sc.time_s,
+            interval_scale=INTERVAL_SCALE_S * grid_factor(options, span_s) / sc.time_s,
             n_initial=lin.initial.size,
             terminal=terminal_rows(
                 problem,

@@ -84,5 +84,24 @@ def iteration_record(
             "node_times_s": t_nodes.tolist(),
         },
     )
-    small = bool(np.all(change <= method.tol_z) and change_s <= method.tol_s)
+    bank = z.shape[1] - 1
+    authority = bank_authority(method, z, new.z)
+    tested = change.copy()  # the bank's change only where it turns a lift worth the name
+    tested[bank] = float(np.max(np.abs(new.z[authority, bank] - z[authority, bank]), initial=0.0))
+    small = bool(np.all(tested <= method.tol_z) and change_s <= method.tol_s)
     return record, small, vc_norm
+
+
+def bank_authority(method: FohPtr, z: Array, z_new: Array) -> Array:
+    """The nodes whose dynamic pressure, on the reference or the step, is at least
+    ``stop_tolerance.bank_dynamic_pressure_fraction`` of the step's peak: there the bank turns
+    a lift (proportional to the dynamic pressure) that moves the states; elsewhere its swings
+    are a flat direction of the subproblem and the state tolerances judge the step."""
+    fraction = method.options.stop_tolerance.bank_dynamic_pressure_fraction
+    if fraction <= 0.0:
+        return np.ones(z.shape[0], dtype=bool)
+    sc = method.problem.scales
+    atmosphere = method.problem.forces.atmosphere
+    q = [atmosphere.density((x[:, 0] - 1.0) * sc.radius_m)[0] * x[:, 3] ** 2 for x in (z, z_new)]
+    q_node = np.maximum(q[0], q[1])  # proportional to the dynamic pressure (same factor)
+    return np.asarray(q_node >= fraction * float(np.max(q[1])))

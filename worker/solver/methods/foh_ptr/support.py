@@ -45,28 +45,63 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     return out
 
 
+PAPER_INTERVALS_S = (10.0, 150.0, 50.0)
+"""Paper 002's Delta_min, Delta_max and DeltaT_max (sec. 4), for its 39 intervals of 1600 s."""
+PAPER_MEAN_INTERVAL_S = 1600.0 / 39
+
+
+def grid_factor(options: FohPtrOptions, span_s: float) -> float:
+    """The mean interval span / N over paper 002's (1600 s / 39): 1 at the paper's 40 nodes."""
+    return (span_s / (options.nodes - 1)) / PAPER_MEAN_INTERVAL_S
+
+
+def interval_bounds(options: FohPtrOptions, span_s: float) -> tuple[float, float, float]:
+    """(Delta_min, Delta_max, DeltaT_max) in s over a flight of ``span_s``: each given value, or
+    paper 002's as the same multiple of the mean interval span / N (the paper's own at 40 nodes
+    over 1600 s), so that any node count spans the flight."""
+    factor = grid_factor(options, span_s)
+    given = (options.interval_min_s, options.interval_max_s, options.interval_trust_s)
+    lo, hi, trust = (
+        g if g is not None else p * factor for g, p in zip(given, PAPER_INTERVALS_S, strict=True)
+    )
+    return lo, hi, trust
+
+
 def _grid_issues(doc: ProblemDocument, options: FohPtrOptions) -> list[FieldIssue]:
-    """Interval bounds that contradict each other or cannot span the flight time."""
-    out = []
-    lo, hi = options.interval_min_s, options.interval_max_s
+    """Given interval bounds that contradict each other or cannot span the flight time, named
+    by the given field (the derived defaults are consistent by construction)."""
+    if doc.final_time.kind != "fixed" or options.grid != "adaptive":
+        return []
+    span = doc.final_time.value_s - doc.initial_state.time_s
+    n = options.nodes - 1
+    lo, hi, _ = interval_bounds(options, span)
+    given_lo, given_hi = options.interval_min_s is not None, options.interval_max_s is not None
     if lo > hi:
-        out.append(
+        field = "method.interval_min_s" if given_lo else "method.interval_max_s"
+        return [
             issue(
-                "method.interval_min_s",
-                f"interval_min_s {lo:g} exceeds interval_max_s {hi:g}",
+                field,
+                f"interval_min_s {lo:g} exceeds interval_max_s {hi:g}"
+                + ("" if given_lo and given_hi else " (the other is derived from t_f / N)"),
                 "inconsistent",
             )
-        )
-    if doc.final_time.kind == "fixed":
-        span = doc.final_time.value_s - doc.initial_state.time_s
-        n = options.nodes - 1
-        if options.grid == "adaptive" and not n * lo <= span <= n * hi:
-            out.append(
-                issue(
-                    "method.nodes",
-                    f"{n} intervals of {lo:g}..{hi:g} s cannot span the flight time "
-                    f"{span:g} s; change nodes or the interval bounds",
-                    "inconsistent",
-                )
+        ]
+    if n * lo > span:
+        return [
+            issue(
+                "method.interval_min_s",
+                f"{n} intervals of at least {lo:g} s exceed the flight time {span:g} s; lower "
+                f"interval_min_s to at most {span / n:g} or leave it out",
+                "inconsistent",
             )
-    return out
+        ]
+    if n * hi < span:
+        return [
+            issue(
+                "method.interval_max_s",
+                f"{n} intervals of at most {hi:g} s cannot span the flight time {span:g} s; "
+                f"raise interval_max_s to at least {span / n:g} or leave it out",
+                "inconsistent",
+            )
+        ]
+    return []
