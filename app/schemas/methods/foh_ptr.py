@@ -80,6 +80,31 @@ class FohPtrOptions(ScpRunOptions):
         "integration (exact_foh only). The paper imposes them at the nodes only; see "
         "docs/methods/foh-ptr.md.",
     )
+    intersample_smooth_max: Literal["exact", "conservative"] = Field(
+        "exact",
+        description='Value of each between-node row: "exact", the worst sample (the smooth '
+        "maximum g_KS = g_max + d ln sum_j exp((g_j - g_max) / d) less its offset at the "
+        "reference; only the row's gradient is smoothed), so a converged row holds the sampled "
+        'constraint exactly; "conservative", g_KS itself, above the worst sample by up to '
+        "d ln J (J = foh_substeps + 1 samples), a bias toward that bound as the mesh is refined.",
+    )
+    intersample_width_log: float = Field(
+        0.002,
+        gt=0,
+        le=0.1,
+        description="Smoothing width d of the between-node path-limit rows, in ln(p / p_max): "
+        "how far below the worst sample the other samples still weigh in the row's gradient "
+        '(0.002: 0.2 % of the limit). With "conservative" the row is also above the worst '
+        "sample by up to d ln J (0.44 % with 9 samples).",
+    )
+    intersample_width_zone_deg: float = Field(
+        0.005,
+        gt=0,
+        le=1,
+        description="Smoothing width d of the between-node no-fly-zone rows, deg of the zone's "
+        'metric (0.005 deg, a tenth of the 0.05 deg intrusion bound). With "conservative" the '
+        "row is also above the worst sample by up to d ln J (0.011 deg with 9 samples).",
+    )
     interval_min_s: float | None = Field(
         None,
         gt=0,

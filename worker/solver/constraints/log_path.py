@@ -25,10 +25,6 @@ from worker.solver.transcription.foh_exact import IntervalSamples
 Array = np.ndarray
 
 LIMIT_NAMES = ("heat_rate", "dynamic_pressure", "load_factor")
-SMOOTH_WIDTH = 0.002
-"""Smoothing width of the between-node rows in ln(p / p_max): with the default 9 samples per
-interval (8 substeps, both ends included) a row is conservative by at most 0.002 ln 9 = 0.44 % of
-the limit, well inside the 1 % to which path limits are verified."""
 
 
 @dataclass
@@ -112,13 +108,17 @@ def path_rows_at(
     return LogPathRows(active_limits(problem), g, g_r, g_v)
 
 
-def inner_path_rows(rows: LogPathRows, samples: IntervalSamples) -> InnerRows:
+def inner_path_rows(
+    rows: LogPathRows, samples: IntervalSamples, width: float, *, exact: bool
+) -> InnerRows:
     """The log path limits between the nodes: per interval and limit, the smooth maximum of the
-    samples (``between_nodes.smooth_max_rows``, width ``SMOOTH_WIDTH``), from ``rows``
-    evaluated at the samples (N * J points, interval-major). Node rows alone let a sparse grid
-    put a heating peak between two nodes; these close that gap."""
+    samples (``between_nodes.smooth_max_rows``, ``width`` in ln(p / p_max), ``exact``: value at
+    the worst sample), from ``rows`` evaluated at the samples (N * J points, interval-major).
+    Node rows alone let a sparse grid put a heating peak between two nodes; these close that
+    gap."""
     n, j = samples.x.shape[:2]
     m = len(rows.names)
     shape = (n, j, m)
     grads = {0: rows.g_r.reshape(shape), 3: rows.g_v.reshape(shape)}
-    return smooth_max_rows(rows.g.reshape(shape), grads, samples, np.full(m, SMOOTH_WIDTH))
+    g = rows.g.reshape(shape)
+    return smooth_max_rows(g, grads, samples, np.full(m, width), exact=exact)

@@ -20,11 +20,6 @@ from worker.solver.geometry import CircleZone
 from worker.solver.transcription.foh_data import InnerRows
 from worker.solver.transcription.foh_exact import IntervalSamples
 
-SMOOTH_WIDTH_RAD = float(np.radians(0.005))
-"""Smoothing width of the between-node zone rows (central angle, rad): conservative by at most
-0.005 deg x ln 9 = 0.011 deg with the default 9 samples per interval (8 substeps, both ends
-included), a fifth of the 0.05 deg intrusion bound."""
-
 Array = np.ndarray
 
 
@@ -84,11 +79,17 @@ def penalty_window(clearance: Array, half_width: int) -> Array:
 
 
 def inner_zone_rows(
-    zones: list[CircleZone], samples: IntervalSamples, margin: float = 0.0
+    zones: list[CircleZone],
+    samples: IntervalSamples,
+    width: float,
+    *,
+    exact: bool,
+    margin: float = 0.0,
 ) -> InnerRows:
     """Zone exclusions between the nodes: R + margin - c <= 0 as the smooth maximum over each
-    interval's samples (width ``SMOOTH_WIDTH_RAD``), linearized through the exact FOH
-    maps (``between_nodes``), so a sparse grid cannot step over a zone between two nodes."""
+    interval's samples (``width`` in rad of the zone's metric, ``exact``: value at the worst
+    sample), linearized through the exact FOH maps (``between_nodes``), so a sparse grid cannot
+    step over a zone between two nodes."""
     n, j = samples.x.shape[:2]
     lat = samples.x[..., 2].ravel()
     lon = samples.x[..., 1].ravel()
@@ -105,5 +106,6 @@ def inner_zone_rows(
         g.reshape(shape),
         {2: g_lat.reshape(shape), 1: g_lon.reshape(shape)},
         samples,
-        np.full(len(zones), SMOOTH_WIDTH_RAD),
+        np.full(len(zones), width),
+        exact=exact,
     )

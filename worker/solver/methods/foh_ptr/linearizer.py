@@ -58,6 +58,7 @@ class Linearizer:
             and options.foh_substeps > 1
             and (self.limits or self.zones)
         )
+        self.inner_exact = options.intersample_smooth_max == "exact"  # value at the worst sample
         self.inner_ratio = np.zeros(len(self.limits))
         self.path_parameters = limit_parameters(problem, self.limits)  # None: numpy rows
         self.second_order = bool(options.second_order)  # the schema allows it with exact_foh only
@@ -126,10 +127,25 @@ class Linearizer:
             rows = at_samples.take(np.arange(0, n * j + 1, j))  # sample 0s, then the last node
             parts = []
             if self.limits:
-                parts.append(inner_path_rows(at_samples.take(slice(0, n * j)), samples))
+                parts.append(
+                    inner_path_rows(
+                        at_samples.take(slice(0, n * j)),
+                        samples,
+                        o.intersample_width_log,
+                        exact=self.inner_exact,
+                    )
+                )
                 self.inner_ratio = np.exp(np.max(parts[0].worst, axis=0))
             if self.zones:
-                parts.append(inner_zone_rows(self.zones, samples, self.margin))
+                parts.append(
+                    inner_zone_rows(
+                        self.zones,
+                        samples,
+                        math.radians(o.intersample_width_zone_deg),
+                        exact=self.inner_exact,
+                        margin=self.margin,
+                    )
+                )
             inner = stack_rows(parts)
         else:
             rows = path_rows_at(p, z[:, 0], z[:, 3], self.path_parameters)
