@@ -73,8 +73,35 @@ class EnergyScpOptions(ScpRunOptions):
     weight_control_smoothness: float = Field(
         0.1,
         ge=0,
-        description="Weight of the penalty on control changes between nodes; suppresses the "
-        "node-to-node bank chattering by which a discrete solution can mimic reduced lift.",
+        description="Weight of the penalty on the step of the control changes between nodes "
+        "(the change of u_{i+1} - u_i from one iteration to the next): damps node-to-node "
+        "bank chattering and vanishes at convergence, so it does not bias the optimum.",
+    )
+    bank_rate_limit_deg_s: float | None = Field(
+        5.0,
+        gt=0,
+        description="Bound on the bank rate between nodes, deg/s, as |u_{i+1} - u_i| <= "
+        "2 sin(rate * dt_i / 2) with dt_i the interval's flight time on the reference: a "
+        "discrete solution cannot chatter the bank from node to node (which the trapezoid "
+        "averages into lift the vehicle cannot fly). null: no bound. The default is above the "
+        "bank rates of the reference optima (3.1 deg/s on the built-in scenario).",
+    )
+    bank_step_max_deg: float = Field(
+        90.0,
+        gt=0,
+        le=180,
+        description="Largest bank change between neighbouring nodes, deg (as the chord "
+        "|u_{i+1} - u_i| <= 2 sin(angle / 2)): the trapezoid averages the two nodes' lift "
+        "vectors while the flown bank sweeps between them, and the two differ by ~angle^2/6 of "
+        "the lift; this keeps that discretization error small and vanishes as the mesh is "
+        "refined (a fixed angle per interval allows ever faster rates).",
+    )
+    chatter_angle_deg: float = Field(
+        10.0,
+        gt=0,
+        description="Stop rule against chatter: a step is not called converged while the bank "
+        "zigzags (three consecutive bank steps between nodes alternate in sign, each larger "
+        "than this angle, deg); the nodes are counted in the history as bank_chatter_nodes.",
     )
     weight_trust_region: float = Field(
         0.005, gt=0, description="Weight on the trust-region slack (w_tr)."

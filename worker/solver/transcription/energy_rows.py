@@ -4,7 +4,9 @@ declared once.
 Equalities: the trapezoidal dynamics on the scaled deviations (eq. 30, plus the virtual control
 nu when enabled), the initial state and the fixed terminal states. Nonnegative rows: the radius
 above its path-limit bound (eq. 33), u1 >= cos sigma_max (eq. 34), the soft and range terminal
-rows and |nu| <= mu. Second-order cones: |u| <= 1 at every node (eq. 35).
+rows, |nu| <= mu and, when enabled, the bank step between nodes bounded on the bank angle
+linearized at the reference (against node-to-node chatter). Second-order cones: |u| <= 1 at
+every node (eq. 35).
 """
 
 from __future__ import annotations
@@ -20,12 +22,33 @@ if TYPE_CHECKING:
     from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
 
 Array = np.ndarray
+BANK_DIRECTION_MIN = 0.1
+"""Below this |u| the reference has no bank direction to linearize the bank angle about."""
 
 
 def _radius_lower(d: SubproblemData) -> Array:
     """The path-limit bound on the radius (present whenever the pattern has path rows)."""
     assert d.radius_lower is not None
     return d.radius_lower
+
+
+def _bank_tangents(d: SubproblemData) -> Array:
+    """(K, 2) gradients of the bank angle atan2(u2, u1) at the reference controls, zero where
+    the reference has no bank direction (|u| small): sigma ~ sigma_ref + t . u."""
+    norm2 = np.sum(d.u_ref**2, axis=1)
+    t = np.column_stack([-d.u_ref[:, 1], d.u_ref[:, 0]]) / np.maximum(norm2, 1e-12)[:, None]
+    return np.where(norm2[:, None] > BANK_DIRECTION_MIN**2, t, 0.0)
+
+
+def _bank_step_rhs(d: SubproblemData) -> Array:
+    """Right-hand sides of the linearized bank-rate rows: cap -/+ the reference's bank step."""
+    assert d.bank_step_max is not None
+    ref = np.arctan2(d.u_ref[:, 1], d.u_ref[:, 0])
+    step = np.angle(np.exp(1j * np.diff(ref)))  # wrapped to (-pi, pi]
+    norm = np.linalg.norm(d.u_ref, axis=1)
+    live = (norm[1:] > BANK_DIRECTION_MIN) & (norm[:-1] > BANK_DIRECTION_MIN)
+    cap = np.where(live, np.maximum(d.bank_step_max, np.abs(step)), 1e3)
+    return np.concatenate([cap - step, cap + step])
 
 
 def _last_node(d: SubproblemData) -> Array:
@@ -105,6 +128,28 @@ def row_blocks(tr: EnergyTrapezoid) -> list[RowBlock[SubproblemData]]:
     ranges = [t for t in tr.terminal if t.kind == "range"]
     blocks.append(soft_block(tr.soft, tr.col_x[-1], tr.col_soft, S, _last_node))
     blocks.append(range_block(ranges, tr.col_x[-1], S, _last_node))
+    if tr.bank_rate_rows:  # |sigma_{i+1} - sigma_i| <= cap_i, sigma linearized at the reference
+        rows_i = np.arange(N)[:, None]
+        pair = np.concatenate([rows_i, N + rows_i])
+
+        def coef(d: SubproblemData, first: bool) -> Array:
+            """t_{i+1} on u_{i+1} and -t_i on u_i (then negated for the lower rows)."""
+            t = _bank_tangents(d)
+            c = t[1:] if first else -t[:-1]
+            return np.concatenate([c, -c])
+
+        blocks.append(
+            RowBlock(
+                "bank_rate",
+                "nonneg",
+                2 * N,
+                (
+                    Term(pair, np.tile(tr.col_u[1:], (2, 1)), update=lambda d: coef(d, True)),
+                    Term(pair, np.tile(tr.col_u[:-1], (2, 1)), update=lambda d: coef(d, False)),
+                ),
+                rhs=_bank_step_rhs,
+            )
+        )
     if tr.virtual_control:  # -mu <= nu <= mu
         rows = np.arange(N * nx)
         nu, mu = tr.col_nu.ravel(), tr.col_mu.ravel()

@@ -42,6 +42,7 @@ class SubproblemData:
     terminal_gradient: Array  # (nx,) d(terminal cost)/dx_N, already weighted/scaled
     radius_lower: Array | None  # (K,) path-limit bound on r, None when no limit
     x0: Array  # (nx,) initial state
+    bank_step_max: Array | None = None  # (N,) bound on |sigma_{i+1} - sigma_i| (bank-rate rows)
 
 
 @dataclass
@@ -75,6 +76,7 @@ class EnergyTrapezoid:
         weight_regularization: float,
         weight_virtual_control: float,
         weight_control_smoothness: float = 0.0,
+        bank_rate_rows: bool = False,
         layout: StateLayout = ENERGY,
     ) -> None:
         self.e = np.asarray(e, dtype=float)
@@ -96,6 +98,7 @@ class EnergyTrapezoid:
         self.w_reg = weight_regularization
         self.w_vc = weight_virtual_control
         self.w_du = weight_control_smoothness
+        self.bank_rate_rows = bank_rate_rows
         self.soft = [t for t in terminal if t.kind == "soft"]
 
         self.columns = cols = Columns()
@@ -113,8 +116,8 @@ class EnergyTrapezoid:
         self.n_zero = self.cones.n_zero
         self.n_nonneg = self.cones.n_nonneg
         self.row_soc = self.rows.start("control_norm")
-        # P: trust region on the scaled state deviations (diagonal), control smoothness on u
-        # (tridiagonal in nodes: w * sum_i c_i |u_{i+1} - u_i|^2)
+        # P: trust region on the scaled state deviations (diagonal), control smoothness on the
+        # step of u (tridiagonal in nodes: w sum_i c_i |(u_{i+1} - u_i) - (ub_{i+1} - ub_i)|^2)
         diag = self.col_x.ravel()
         cu = self.col_u
         p_rows = [diag, cu.ravel(), cu[:-1].ravel()]
@@ -141,11 +144,15 @@ class EnergyTrapezoid:
         self.quad_w = w  # trapezoid weights of the running cost
         self._P: sp.csc_matrix | None = None  # depends on the grid: rebuilt on the next build
 
+    def _smoothness_weights(self) -> Array:
+        """Per-interval weight c_i of the control-smoothness term: a penalty on the rate du/de."""
+        return self.w_du * np.mean(self.h) / self.h
+
     def _objective_matrix(self) -> sp.csc_matrix:
         """P on the current grid (trust region and control smoothness); cached until regrid."""
         if self._P is None:
-            K, h = self.K, self.h
-            c = self.w_du * np.mean(h) / h  # per-interval weight: a penalty on the rate du/de
+            K = self.K
+            c = self._smoothness_weights()
             u_diag = np.zeros(K)
             u_diag[:-1] += 2.0 * c
             u_diag[1:] += 2.0 * c
@@ -177,6 +184,13 @@ class EnergyTrapezoid:
             norm[:, None] > 1e-9, d.u_ref / np.maximum(norm, 1e-9)[:, None], np.array([1.0, 0.0])
         )
         q_u = -self.w_reg * self.quad_w[:, None] * direction
+        # smoothness acts on the step of the control differences, so it vanishes (value and
+        # gradient) at convergence and does not bias the optimum: the linear part of
+        # c_i |D u - D ubar|^2 is -2 c_i D ubar . D u
+        if self.w_du > 0:
+            du_ref = 2.0 * self._smoothness_weights()[:, None] * np.diff(d.u_ref, axis=0)
+            q_u[:-1] += du_ref
+            q_u[1:] -= du_ref
         q = self.columns.vector({**self._q_constant, "x": q_x, "u": q_u})
         return ConeProblem(P=self._objective_matrix(), q=q, A=A, b=b, cones=self.cones)
 

@@ -7,13 +7,16 @@ linearization error is large (post-correction, eq. 38), and stop when no state m
 its tolerance (eq. 37). Departures from the printed method, each a correction: the exact
 V(r, e) replaces eq. 8's approximation; the trust region is scaled per state; virtual control is
 added only when a subproblem is infeasible, and then penalized and reported; after two
-iterations the nodes are re-spaced evenly in flight time.
+iterations the nodes are re-spaced evenly in flight time (again when the flight time moves);
+the bank step between nodes is bounded, a step is not converged while the bank chatters or the
+control cone is slack (then the controls move onto the circle keeping their vertical lift).
 """
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Unpack
 
 import numpy as np
@@ -21,6 +24,7 @@ import numpy as np
 from app.schemas.methods import EnergyScpOptions
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
+from worker.solver.methods.energy_scp.controls import GAP_TOL, bank_chatter, lift_preserving
 from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
@@ -43,6 +47,8 @@ from worker.solver.transcription.terminal import terminal_rows
 Array = np.ndarray
 REGRID_AFTER = 2
 """Iteration after which the nodes are re-spaced evenly in the iterate's flight time."""
+REGRID_SHIFT = 12.0
+"""Re-space again when the time-even grid moved a node by more than this many mean intervals."""
 
 
 @dataclass
@@ -93,6 +99,7 @@ class EnergyScp:
             weight_regularization=o.weight_regularization,
             weight_virtual_control=o.weight_virtual_control,
             weight_control_smoothness=o.weight_control_smoothness,
+            bank_rate_rows=True,
         )
 
     def start(self) -> EnergyIterate:
@@ -109,7 +116,7 @@ class EnergyScp:
                     f"(node {bad}); raise the limits or change the energy range",
                 )
         self.next_ed = energy_dynamics(x, u, e, p.forces, p.omega)
-        self.objective = EnergyObjective(p, e, x, self.next_ed)
+        self.objective = EnergyObjective(p, e, x, self.next_ed, self.scale, self.trust.weight)
         return EnergyIterate(e, x, u, e, x, u)
 
     def linearize(self, reference: EnergyIterate) -> EnergyDerivatives:
@@ -135,8 +142,22 @@ class EnergyScp:
             terminal_gradient=term_grad,
             radius_lower=self.r_lower,
             x0=self.problem.y0[list(TIME_INDEX)],
+            bank_step_max=self.bank_step_max(reference.e, linearization),
         )
         return self.tr.build(self.data)
+
+    def bank_step_max(self, e: Array, ed: EnergyDerivatives) -> Array:
+        """The largest bank change of each interval: ``bank_step_max_deg``, or less when the
+        rate bound w over the interval's flight time dt_i on the reference (trapezoid of dt/de)
+        is smaller."""
+        o = self.options
+        angle = np.full(e.size - 1, math.radians(o.bank_step_max_deg))
+        if o.bank_rate_limit_deg_s is not None:
+            dt_de = 1.0 / np.maximum(np.abs(ed.edot), 1e-12)
+            dt = 0.5 * (dt_de[1:] + dt_de[:-1]) * np.diff(e)
+            rate = math.radians(o.bank_rate_limit_deg_s) * self.problem.scales.time_s
+            angle = np.minimum(angle, rate * dt)
+        return angle
 
     def solve(
         self, problem: ConeProblem, conic: scp.ConicCall, limit_s: float, deadline: float
@@ -194,17 +215,31 @@ class EnergyScp:
         self, reference: EnergyIterate, proposal: scp.Proposal[EnergyIterate]
     ) -> scp.Judgement[EnergyIterate, EnergyDerivatives]:
         """Every step is taken; small when no state moved more than its tolerance (eq. 37) on
-        a grid that has been used once. Not converged after ``REGRID_AFTER`` iterations, the
-        grid is re-spaced evenly in flight time (which resolves the terminal maneuver that a
-        grid even in energy crowds into its last intervals)."""
+        a grid that has been used once, the bank does not chatter and the control cone is
+        tight (else the reference's controls are projected onto it and the iteration goes on).
+        Not converged after ``REGRID_AFTER`` iterations, the grid is re-spaced evenly in flight
+        time (which resolves the terminal maneuver that a grid even in energy crowds into its
+        last intervals), and again whenever the flight time has moved (``regrid_due``)."""
         iteration = proposal.record.iteration
-        small = bool(np.all(self.change < self.tol)) and iteration > self.regrid_done
+        chatter = bank_chatter(proposal.reference.u_solution, self.options.chatter_angle_deg)
+        if chatter:
+            proposal.record.extra["bank_chatter_nodes"] = chatter
+        small = (
+            bool(np.all(self.change < self.tol)) and iteration > self.regrid_done and not chatter
+        )
         verdict: scp.Judgement[EnergyIterate, EnergyDerivatives] = scp.Judgement(
             accepted=True, small=small, virtual_control=self.virtual
         )
+        ref = proposal.reference
+        if small and proposal.record.relaxation_gap > GAP_TOL:
+            # converged inside the disc: the relaxation is not exact, so the lift it flies is
+            # not the vehicle's; continue from the bank that flies the same vertical lift
+            verdict.small = small = False
+            verdict.reference = replace(ref, u=lift_preserving(ref.u_solution, ref.u))
+            proposal.record.extra["lift_preserving_projection"] = True
         done = small and self.virtual <= scp.VIRTUAL_CONTROL_TOL
-        if not done and iteration == REGRID_AFTER and self.options.grid != "uniform":
-            verdict.reference = self.regrid(proposal.reference)
+        if not done and self.options.grid != "uniform" and self.regrid_due(iteration, proposal):
+            verdict.reference = self.regrid(verdict.reference or proposal.reference)
             self.regrid_done = iteration + 1
             proposal.record.extra["regrid"] = True
         return verdict
@@ -227,6 +262,19 @@ class EnergyScp:
             return {}
         last = outcome.history[-1].cost_terms
         return {k.split(":", 1)[1]: v for k, v in last.items() if k.startswith("objective:")}
+
+    def regrid_due(self, iteration: int, proposal: scp.Proposal[EnergyIterate]) -> bool:
+        """Re-space at ``REGRID_AFTER``, and again whenever a node of the iterate's time-even
+        grid lies more than ``REGRID_SHIFT`` intervals from the current one (the flight time
+        has moved since: a terminal maneuver left on a coarse interval)."""
+        if iteration == REGRID_AFTER:
+            return True
+        if iteration < REGRID_AFTER or iteration <= self.regrid_done:
+            return False
+        p, ref = self.problem, proposal.reference
+        dt_de = 1.0 / energy_rates(ref.x, ref.u, ref.e, p.forces, p.omega).edot
+        shift = np.abs(time_uniform_grid(ref.e, dt_de) - ref.e)
+        return bool(np.max(shift) > REGRID_SHIFT * np.mean(np.diff(ref.e)))
 
     def regrid(self, ref: EnergyIterate) -> EnergyIterate:
         """``ref`` interpolated onto a grid even in its flight time (the solution keeps its own

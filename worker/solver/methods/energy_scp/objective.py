@@ -1,5 +1,6 @@
 """The objective of paper 000's method: running costs (heat load, flight time) by the trapezoid
-in energy and terminal costs on the last node, each normalized to O(1) on the initial guess."""
+in energy and terminal costs on the last node, each normalized on the initial guess: a running
+cost by its value, a terminal cost by its sensitivity per trust-region unit."""
 
 from __future__ import annotations
 
@@ -19,26 +20,47 @@ from worker.solver.objectives import (
 from worker.solver.problem import EntryProblem
 
 Array = np.ndarray
+TERMINAL_STEP_UNITS = 25.0
+"""Trust units a terminal objective alone would move its last node per iteration (the
+subproblem's dynamics and post-correction shorten it): sets the terminal terms' normalization."""
 
 
 class EnergyObjective:
-    """The problem's objective terms, normalized so that each is O(1) on the initial guess.
+    """The problem's objective terms, each normalized on the initial reference.
 
-    A running cost is evaluated once per linearization ``ed`` (the last one is kept).
+    A running cost is divided by its value there (O(1); its sensitivity to one trust-region
+    unit at every node is then ~0.4 for the heat load). A terminal cost is divided by its
+    sensitivity, scaled to the trust region: one trust unit (``state_scale``) of its state
+    is worth ``2 w_tr (K/3) TERMINAL_STEP_UNITS``, the trust-region curvature of a ramp step
+    (zero at the first node, growing linearly to the last, sum of squares ~K/3) that moves the
+    last node ``TERMINAL_STEP_UNITS`` units. Divided by its value instead, a terminal latitude
+    moves ~1 degree per iteration and stops far from its optimum; this way it moves at the rate
+    the trust region allows at any node count. A running cost is evaluated once per
+    linearization ``ed`` (the last one is kept).
     """
 
-    def __init__(self, problem: EntryProblem, e: Array, x: Array, ed: EnergyDerivatives) -> None:
+    def __init__(
+        self,
+        problem: EntryProblem,
+        e: Array,
+        x: Array,
+        ed: EnergyDerivatives,
+        state_scale: Array,
+        weight_trust_region: float,
+    ) -> None:
         self.problem = problem
         self.e = e
         self.scale: dict[str, float] = {}
         self._cached_ed: EnergyDerivatives | None = None
         self._cached: dict[str, RunningCost] = {}
+        gain = 2.0 * weight_trust_region * (e.size / 3.0) * TERMINAL_STEP_UNITS
         for term in problem.objective:
             if term.name in RUNNING_COSTS:
                 value = trapezoid(self._running(term.name, x, ed).density, e)
                 self.scale[term.name] = abs(value) if value != 0 else 1.0
             else:
-                self.scale[term.name] = 1.0
+                idx, _ = TERMINAL_COSTS[term.name]
+                self.scale[term.name] = float(state_scale[idx]) / gain
 
     def _running(self, name: str, x: Array, ed: EnergyDerivatives) -> RunningCost:
         """Running cost ``name`` on ``x`` (``ed`` is the dynamics at ``x``), cached per ``ed``."""
