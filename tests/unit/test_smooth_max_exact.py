@@ -1,7 +1,8 @@
-"""The exact between-node rows of the time-domain SCP on a case where a zone and the heat-rate
-limit are both active: paper 002 case 1 with the built-in scenario's on-path zone in paper
-002's metric (``tests/variants/data/foh-active-nfz.json``: its NLP collocation reference,
-952.85 m/s at 800 intervals, uncertain by 1.4e-4 relative, and its provenance).
+"""The exact between-node rows (``intersample_smooth_max: "exact"``) of the time-domain SCP on a
+case where a zone and the heat-rate limit are both active: paper 002 case 1 with the built-in
+scenario's on-path zone in paper 002's metric (``tests/variants/data/foh-active-nfz.json``: its
+NLP collocation reference, 952.85 m/s at 800 intervals, uncertain by 1.4e-4 relative, and its
+provenance).
 
 Tolerances. 100 nodes: 0.1 % of the reference (issue 15's target for the rows; measured
 +0.016 %, 953.00 m/s). 40 nodes: 0.15 %, because the 40-node bank parametrization itself costs
@@ -39,7 +40,7 @@ def _variant(nodes: int, **method: Any) -> tuple[ProblemDocument, float]:
 @pytest.mark.slow
 @pytest.mark.parametrize(("nodes", "tolerance"), [(40, 0.0015), (100, 0.001)])
 def test_zone_and_heat_active_case_reaches_the_reference(nodes: int, tolerance: float) -> None:
-    doc, reference = _variant(nodes)
+    doc, reference = _variant(nodes, intersample_smooth_max="exact")
     result = solve_problem(doc)
     assert result["status"] == "succeeded", result.get("failure")
     assert result["verification"]["feasible"]
@@ -54,7 +55,7 @@ def test_exact_rows_hold_the_zone_no_farther_out_than_the_conservative_ones() ->
     """At 100 nodes the conservative rows keep the path out by their offset (up to d ln 9 =
     0.011 deg); the exact rows put it on the zone's edge (measured 0.0036 deg out and 0.00006
     deg in) and gain the terminal velocity that offset cost (measured +0.14 m/s)."""
-    exact = solve_problem(_variant(100)[0])
+    exact = solve_problem(_variant(100, intersample_smooth_max="exact")[0])
     conservative = solve_problem(_variant(100, intersample_smooth_max="conservative")[0])
     for result in (exact, conservative):
         assert result["status"] == "succeeded", result.get("failure")

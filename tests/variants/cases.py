@@ -32,15 +32,21 @@ TOLERANCE = 0.003
 
 REQUIRED: frozenset[str] = frozenset(
     {
+        "energy-hard-terminal",
         "energy-heat-rate-800",
+        "energy-max-final-latitude",
         "energy-nodes-121",
         "energy-nodes-401",
+        "foh-active-nfz",
         "foh-final-time-1500",
         "foh-final-time-1650",
         "foh-heat-rate-1400",
         "foh-heat-rate-1450",
+        "foh-nodes-120",
         "foh-nodes-160",
         "foh-nodes-40",
+        "foh-nodes-400",
+        "foh-nodes-400-interval-min-2",
         "foh-us76",
         "foh-us76-final-time-1650",
     }
