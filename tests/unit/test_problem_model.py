@@ -8,8 +8,9 @@ import math
 import pytest
 
 from app.schemas import ProblemDocument
-from worker.solver.problem import STATE_NAMES, build_problem
+from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario, list_scenarios
+from worker.solver.trajectory import TIME_STATE_NAMES
 
 SCENARIOS = [s.name for s in list_scenarios()]
 
@@ -25,7 +26,7 @@ def test_typed_fields_match_the_request(name: str) -> None:
     bank = doc.initial_state.bank_deg
     assert model.initial_bank == (math.radians(bank) if bank is not None else None)
     assert model.initial_bank_deg == bank
-    for state in STATE_NAMES:
+    for state in TIME_STATE_NAMES:
         spec = getattr(doc.terminal, state)
         given = model.terminal_si[state]
         assert given.kind == spec.kind

@@ -19,17 +19,10 @@ from worker.solver.atmosphere import atmosphere_from_spec
 from worker.solver.forces import VehicleForces
 from worker.solver.geometry import CircleZone
 from worker.solver.path_limits import HeatRateModel, PathLimits
+from worker.solver.trajectory import TIME_STATE_NAMES
 from worker.solver.units import Scales
 
 TerminalKind = Literal["fixed", "range", "free", "soft"]
-STATE_NAMES = (
-    "altitude_m",
-    "longitude_deg",
-    "latitude_deg",
-    "velocity_m_s",
-    "flight_path_angle_deg",
-    "heading_deg",
-)
 
 
 @dataclass(frozen=True)
@@ -76,7 +69,7 @@ class EntryProblem:
     initial_bank: float | None  # radians; None when the request leaves the initial bank free
     initial_bank_deg: float | None  # the same as the request gives it, for what reports degrees
     t0: float
-    terminal: dict[str, TerminalTarget]  # keyed by STATE_NAMES
+    terminal: dict[str, TerminalTarget]  # keyed by TIME_STATE_NAMES
     terminal_si: dict[str, TerminalTarget]  # the same in the request's units (m, deg, m/s)
     final_time: float | None  # nondimensional, None when free
     energy_initial: float | None
@@ -178,10 +171,11 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         "flight_path_angle_deg": lambda a: math.radians(float(a)),
         "heading_deg": lambda a: math.radians(float(a)),
     }
+    names = TIME_STATE_NAMES
     terminal = {
-        name: _terminal_to_nd(getattr(doc.terminal, name), converters[name]) for name in STATE_NAMES
+        name: _terminal_to_nd(getattr(doc.terminal, name), converters[name]) for name in names
     }
-    terminal_si = {name: _terminal_as_given(getattr(doc.terminal, name)) for name in STATE_NAMES}
+    terminal_si = {name: _terminal_as_given(getattr(doc.terminal, name)) for name in names}
     final_time = None
     if doc.final_time.kind == "fixed":
         final_time = (doc.final_time.value_s - s0.time_s) / scales.time_s

@@ -14,6 +14,17 @@ import numpy as np
 Array = np.ndarray
 GridKind = Literal["energy", "time"]
 
+TIME_STATE_NAMES = (
+    "altitude_m",
+    "longitude_deg",
+    "latitude_deg",
+    "velocity_m_s",
+    "flight_path_angle_deg",
+    "heading_deg",
+)
+"""The point-mass states y = [r, theta, phi, V, gamma, psi] by their SI names, in order: the
+columns of ``OptimizedTrajectory.y`` and the states that can carry a terminal condition."""
+
 
 @dataclass
 class OptimizedTrajectory:

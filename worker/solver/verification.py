@@ -26,8 +26,8 @@ from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.models.point_mass import time_dynamics
 from worker.solver.models.scalar_rates import time_rates
 from worker.solver.path_limits import path_values
-from worker.solver.problem import STATE_NAMES, EntryProblem, TerminalTarget
-from worker.solver.trajectory import Array, OptimizedTrajectory, bank_profile
+from worker.solver.problem import EntryProblem, TerminalTarget
+from worker.solver.trajectory import TIME_STATE_NAMES, Array, OptimizedTrajectory, bank_profile
 
 StopCheck = Callable[[], bool]
 
@@ -179,11 +179,11 @@ def verify(
         reached_end = sol.status == 0
     final_si = _to_si(problem, y_final)
     opt_final_si = _to_si(problem, traj.y[-1])
-    tol_map = {name: getattr(tol, name) for name in STATE_NAMES}
+    tol_map = {name: getattr(tol, name) for name in TIME_STATE_NAMES}
 
     terminal_vs_target: dict[str, Any] = {}
     hard_ok = True
-    for name in STATE_NAMES:
+    for name in TIME_STATE_NAMES:
         spec = problem.terminal_si[name]
         value = final_si[name]
         if spec.kind == "free":
@@ -199,7 +199,7 @@ def verify(
             "within": within,
         }
 
-    terminal_vs_opt = {name: final_si[name] - opt_final_si[name] for name in STATE_NAMES}
+    terminal_vs_opt = {name: final_si[name] - opt_final_si[name] for name in TIME_STATE_NAMES}
     terminal_vs_opt["time_s"] = (t_final - float(traj.t[-1])) * sc.time_s
 
     # deviation along the path at the optimizer's nodes

@@ -16,22 +16,13 @@ from typing import Any, Literal
 
 import numpy as np
 
+from worker.solver.trajectory import TIME_STATE_NAMES
 from worker.solver.units import Scales
 
 Array = np.ndarray
 Quantity = Literal["radius", "angle", "speed"]
 """How a state converts: radius (nondimensional 1 + h/R0, reported as altitude in metres),
 angle (radians, reported in degrees) or speed (V / sqrt(R0 g0), reported in m/s)."""
-
-TIME_STATE_NAMES = (
-    "altitude_m",
-    "longitude_deg",
-    "latitude_deg",
-    "velocity_m_s",
-    "flight_path_angle_deg",
-    "heading_deg",
-)
-"""The point-mass states that can carry a terminal condition, by their SI names."""
 
 
 @dataclass(frozen=True)

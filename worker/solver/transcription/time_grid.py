@@ -15,7 +15,8 @@ import numpy as np
 
 from worker.solver.models.bank_state import bank_state_dynamics
 from worker.solver.models.bank_state_compiled import chain_kernel, compiled_parameters, float_arrays
-from worker.solver.problem import STATE_NAMES, EntryProblem
+from worker.solver.problem import EntryProblem
+from worker.solver.trajectory import TIME_STATE_NAMES
 
 Array = np.ndarray
 
@@ -92,7 +93,7 @@ def _miss(problem: EntryProblem, end: Array) -> Array:
         ]
     )
     score = np.zeros(end.shape[0])
-    for j, name in enumerate(STATE_NAMES):
+    for j, name in enumerate(TIME_STATE_NAMES):
         target = problem.terminal[name].target()
         if target is None:
             continue
