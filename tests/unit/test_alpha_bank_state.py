@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from tests.unit.corridor import corridor_states
 from worker.solver.aero_models import PolynomialAero
 from worker.solver.alpha_schedules import ConstantAlpha, VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
@@ -42,18 +43,10 @@ def _forces(schedule: VelocityScheduleAlpha | ConstantAlpha | None = None) -> Ve
 
 def _states(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """8-states over the entry corridor, rates of bank and alpha, and interval lengths."""
-    z = np.column_stack(
-        [
-            1.0 + rng.uniform(20e3, 100e3, n) / 6378140.0,
-            rng.uniform(-1.0, 1.0, n),
-            rng.uniform(-1.2, 1.2, n),
-            rng.uniform(0.15, 0.95, n),
-            rng.uniform(-0.3, 0.1, n),
-            rng.uniform(-3.0, 3.0, n),
-            rng.uniform(-1.4, 1.4, n),
-            np.radians(rng.uniform(5.0, 45.0, n)),
-        ]
-    )
+    y = corridor_states(n, rng)
+    sigma = rng.uniform(-1.4, 1.4, n)
+    alpha = np.radians(rng.uniform(5.0, 45.0, n))
+    z = np.column_stack([y, sigma, alpha])
     w = rng.normal(0.0, 0.05, (n, 2))
     return z, w, rng.uniform(0.005, 0.05, n)
 

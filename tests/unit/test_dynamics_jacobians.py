@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.unit.corridor import corridor_states
 from worker.solver.aero_models import PolynomialAero
 from worker.solver.alpha_schedules import VelocityScheduleAlpha
 from worker.solver.atmosphere import ExponentialAtmosphere
@@ -34,16 +35,7 @@ def _forces() -> VehicleForces:
 
 def _states(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Time-form states spread over the entry corridor; speeds on both sides of the alpha break."""
-    y = np.column_stack(
-        [
-            1.0 + rng.uniform(20e3, 100e3, n) / 6378140.0,
-            rng.uniform(-1.0, 1.0, n),
-            rng.uniform(-1.2, 1.2, n),
-            rng.uniform(0.15, 0.95, n),
-            rng.uniform(-0.3, 0.1, n),
-            rng.uniform(-3.0, 3.0, n),
-        ]
-    )
+    y = corridor_states(n, rng)
     sigma = rng.uniform(-1.4, 1.4, n)
     u = np.column_stack([np.cos(sigma), np.sin(sigma)]) * rng.uniform(0.8, 1.0, n)[:, None]
     return y, u

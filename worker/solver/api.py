@@ -12,12 +12,12 @@ from typing import Any
 
 from app.schemas import ProblemDocument
 from app.schemas.result import json_ready
+from worker.solver.finite import non_finite_entries
 from worker.solver.methods import METHODS, check_support
 from worker.solver.objectives import UNITS
 from worker.solver.problem import build_problem
 from worker.solver.result import (
     node_violations,
-    non_finite_entries,
     provenance,
     trajectory_columns,
     validated,

@@ -3,7 +3,6 @@ say honestly what is wrong with it: non-finite values, constraints the nodes do 
 
 from __future__ import annotations
 
-import math
 import platform
 import sys
 from datetime import UTC, datetime
@@ -113,27 +112,6 @@ def validated(document: dict[str, Any]) -> dict[str, Any]:
     clean: dict[str, Any] = json_ready(document)
     ResultDocument.model_validate(clean)
     return clean
-
-
-def non_finite_entries(value: Any, path: str = "") -> list[str]:
-    """Where ``value`` (numbers, arrays, dicts and lists of them) holds NaN or infinity: each
-    entry's dotted path and how many values there are non-finite (a list counts once)."""
-    if isinstance(value, bool | int | str) or value is None:
-        return []
-    if isinstance(value, float):
-        return [] if math.isfinite(value) else [path]
-    if isinstance(value, dict):
-        inner = ((f"{path}.{k}".lstrip("."), v) for k, v in value.items())
-        return [e for where, v in inner for e in non_finite_entries(v, where)]
-    if isinstance(value, list | tuple | np.ndarray):
-        flat = np.asarray(value, dtype=object).ravel()
-        numbers = [v for v in flat if isinstance(v, float | np.floating)]
-        bad = sum(1 for v in numbers if not math.isfinite(float(v)))
-        nested = [e for v in flat if isinstance(v, dict) for e in non_finite_entries(v, path)]
-        return ([f"{path} ({bad} of {flat.size} values)"] if bad else []) + nested
-    if isinstance(value, np.floating):
-        return [] if math.isfinite(float(value)) else [path]
-    return []
 
 
 def node_violations(

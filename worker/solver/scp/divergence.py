@@ -4,11 +4,9 @@ can take in one iteration, read from the candidate and its history record (SI, d
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
-import numpy as np
-
+from worker.solver.finite import non_finite_entries
 from worker.solver.scp.history import IterationRecord
 
 STEP_BOUNDS: dict[str, float] = {
@@ -32,17 +30,7 @@ are not bounded here. States not listed are only checked for finiteness."""
 
 def _non_finite(value: Any) -> bool:
     """Whether ``value`` (a number, an array, a dict or list of them) holds NaN or infinity."""
-    if isinstance(value, bool | int | str) or value is None:
-        return False
-    if isinstance(value, float):
-        return not math.isfinite(value)
-    if isinstance(value, np.ndarray):
-        return bool(value.dtype.kind in "fc" and not np.isfinite(value).all())
-    if isinstance(value, dict):
-        return any(_non_finite(v) for v in value.values())
-    if isinstance(value, list | tuple):
-        return any(_non_finite(v) for v in value)
-    return False
+    return bool(non_finite_entries(value))
 
 
 def non_finite_fields(candidate: Any) -> list[str]:

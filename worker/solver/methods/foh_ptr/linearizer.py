@@ -208,22 +208,6 @@ class Linearizer:
         return data, rows.ratio
 
 
-def _finite(data: SubproblemData) -> bool:
-    """Whether the linearization is usable (a long step can leave the atmosphere model)."""
-    mp = data.maps
-    parts = [mp.x_prop, mp.jacobian, data.path_g]
-    if data.inner is not None:
-        parts.append(data.inner.g)
-    return all(bool(np.all(np.isfinite(a))) for a in parts)
-
-
-def _defect(data: SubproblemData, scale: Array) -> tuple[Array, float]:
-    """How far the reference nodes are from their own propagation: the largest gap per state
-    (nondimensional) and overall in scaled units. It judges the step that made the reference."""
-    by_state = np.max(np.abs(data.maps.x_prop - data.z[1:]), axis=0)
-    return by_state, float(np.max(by_state / scale))
-
-
 def finite(data: SubproblemData) -> bool:
     """Whether the linearization is usable (a long step can leave the atmosphere model)."""
     mp = data.maps
