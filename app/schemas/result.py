@@ -105,7 +105,8 @@ class StateValues(BaseModel):
 
 
 class HistoryExtra(BaseModel):
-    """A method's own diagnostics of one iteration (foh-ptr: the keys below; others: none).
+    """A method's own diagnostics of one iteration (foh-ptr: the keys below; energy-scp:
+    ``weight_trust_region`` and the chatter/projection/regrid flags).
 
     Methods may add keys; those listed are documented with their units.
     """

@@ -79,6 +79,19 @@ def _strip(value: Any) -> Any:
     return value
 
 
+VERSIONS_FILE = "versions.json"
+"""The numerical libraries' versions the recordings were made with (in ``DATA``)."""
+LIBRARIES = ("numpy", "scipy", "clarabel", "numba", "llvmlite")
+"""The libraries whose arithmetic the recordings depend on (pinned in constraints.txt)."""
+
+
+def library_versions() -> dict[str, str]:
+    """The installed versions of ``LIBRARIES``."""
+    from importlib.metadata import version
+
+    return {name: version(name) for name in LIBRARIES}
+
+
 def solve(document: dict[str, Any]) -> dict[str, Any]:
     """The case's result document, stripped of what is not arithmetic (``VOLATILE_KEYS``)."""
     result = solve_problem(ProblemDocument.model_validate(document))

@@ -37,9 +37,11 @@ def solved() -> dict[str, Any]:
 
 def test_scenario_meets_acceptance(solved: dict[str, Any]) -> None:
     assert solved["status"] == "succeeded", solved["failure"]
-    # heat load within 1.0% of the reference, both as optimized and as propagated
-    assert abs(solved["objective"]["value"] / REFERENCE_HEAT_LOAD_J_M2 - 1) <= 0.01
-    assert abs(solved["objective"]["propagated_value"] / REFERENCE_HEAT_LOAD_J_M2 - 1) <= 0.01
+    # heat load within 0.15 % of the reference, both as optimized and as propagated (the
+    # relaxed trust weight and the stationarity test reach 0.05 %; the paper's fixed weights
+    # stopped 0.29 % short in 8 iterations)
+    assert abs(solved["objective"]["value"] / REFERENCE_HEAT_LOAD_J_M2 - 1) <= 0.0015
+    assert abs(solved["objective"]["propagated_value"] / REFERENCE_HEAT_LOAD_J_M2 - 1) <= 0.0015
     ver = solved["verification"]
     assert ver["feasible"]
     err = {k: abs(v["error"]) for k, v in ver["terminal_error_vs_target"].items()}
@@ -48,7 +50,8 @@ def test_scenario_meets_acceptance(solved: dict[str, Any]) -> None:
     assert err["flight_path_angle_deg"] <= 0.3 and err["heading_deg"] <= 0.3
     for entry in ver["path_maxima"].values():
         assert entry["ratio"] <= 1.01  # limits respected between nodes within 1%
-    assert solved["timing"]["iterations"] <= 15
+    # the stationarity test costs iterations: 24 today, within the default cap of 60
+    assert solved["timing"]["iterations"] <= 30
 
 
 def test_result_document_shape(solved: dict[str, Any]) -> None:

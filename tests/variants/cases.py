@@ -37,6 +37,7 @@ REQUIRED: frozenset[str] = frozenset(
         "energy-max-final-latitude",
         "energy-nodes-121",
         "energy-nodes-401",
+        "energy-terminal-18-65-20",
         "foh-active-nfz",
         "foh-final-time-1500",
         "foh-final-time-1650",
@@ -53,10 +54,7 @@ REQUIRED: frozenset[str] = frozenset(
 )
 """Variants that succeed within ``TOLERANCE`` and verified feasible today (they cannot regress)."""
 
-KNOWN_WRONG: dict[str, str] = {
-    "energy-terminal-18-65-20": "succeeds 1.56 % above the reference heat load (a worse local "
-    "solution reported as succeeded; verification checks feasibility, not optimality)",
-}
+KNOWN_WRONG: dict[str, str] = {}
 """Variants that today succeed with a wrong answer, with what is wrong (expected to fail)."""
 
 BENCH_ONLY: frozenset[str] = frozenset(

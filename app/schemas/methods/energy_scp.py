@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from app.schemas.limits import MAX_NODES
+from app.schemas.limits import MAX_ITERATIONS, MAX_NODES
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 
 
@@ -24,6 +24,13 @@ class EnergyStopTolerance(BoundedOptions):
         1.0, gt=0, description="Flight path angle change tolerance, deg."
     )
     heading_deg: float = Field(1.0, gt=0, description="Heading change tolerance, deg.")
+    relative_cost: float = Field(
+        3e-5,
+        gt=0,
+        description="Stationarity: the objective changed by less than this fraction of its "
+        "value over the last iteration (the state test alone takes a slow creep towards the "
+        "optimum for convergence).",
+    )
 
 
 class EnergyScpOptions(ScpRunOptions):
@@ -41,6 +48,14 @@ class EnergyScpOptions(ScpRunOptions):
         ge=3,
         le=MAX_NODES,
         description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}.",
+    )
+    max_iterations: int = Field(
+        60,
+        ge=1,
+        le=MAX_ITERATIONS,
+        description=f"Most SCP iterations, 1..{MAX_ITERATIONS} (the relaxed trust region and "
+        "the stationarity test need more than the paper's fixed weight: 20-50 on the variant "
+        "suite).",
     )
     grid: Literal["time_adaptive", "uniform"] = Field(
         "time_adaptive",
@@ -68,7 +83,14 @@ class EnergyScpOptions(ScpRunOptions):
         ge=0,
         description="Weight of the cone-tightness regularization: a reward on the bank-plane "
         "control along its previous direction (the linearization of |u|), which keeps "
-        "(cos sigma, sin sigma) on the unit circle (paper 000 eq. 22). Per unit energy.",
+        "(cos sigma, sin sigma) on the unit circle (paper 000 eq. 22). Per unit energy. After "
+        "trust_hold_iterations it is halved per iteration at nodes whose control stays on the "
+        "circle, down to weight_regularization_min, and raised again where a control falls "
+        "inside the disc: the reward also resists turning the bank, which slows the iterates "
+        "wherever the optimum swings it.",
+    )
+    weight_regularization_min: float = Field(
+        1.0, ge=0, description="Lightest per-node regularization weight (see above)."
     )
     weight_control_smoothness: float = Field(
         0.1,
@@ -104,7 +126,27 @@ class EnergyScpOptions(ScpRunOptions):
         "than this angle, deg); the nodes are counted in the history as bank_chatter_nodes.",
     )
     weight_trust_region: float = Field(
-        0.005, gt=0, description="Weight on the trust-region slack (w_tr)."
+        0.005,
+        gt=0,
+        description="Weight on the trust-region slack (w_tr) for the first "
+        "trust_hold_iterations; then it is multiplied by trust_relax_factor per iteration down "
+        "to weight_trust_region_min, and a step is called converged only at that weight.",
+    )
+    weight_trust_region_min: float = Field(
+        1e-5, gt=0, description="Lightest trust-region weight (see weight_trust_region)."
+    )
+    trust_relax_factor: float = Field(
+        0.25,
+        gt=0,
+        le=1,
+        description="Factor on the trust-region weight per iteration after the held ones; 1 "
+        "keeps the paper's fixed weight.",
+    )
+    trust_hold_iterations: int = Field(
+        3,
+        ge=0,
+        description="Iterations at the full trust-region and regularization weights before "
+        "both are relaxed.",
     )
     virtual_control: Literal["off", "auto", "on"] = Field(
         "auto",

@@ -73,7 +73,7 @@ class EnergyTrapezoid:
         path_limits: bool,
         virtual_control: bool,
         weight_trust_region: float,
-        weight_regularization: float,
+        weight_regularization: float | Array,
         weight_virtual_control: float,
         weight_control_smoothness: float = 0.0,
         bank_rate_rows: bool = False,
@@ -95,7 +95,7 @@ class EnergyTrapezoid:
         self.path_limits = path_limits
         self.virtual_control = virtual_control
         self.w_tr = weight_trust_region
-        self.w_reg = weight_regularization
+        self.w_reg = np.broadcast_to(np.asarray(weight_regularization, dtype=float), (K,)).copy()
         self.w_vc = weight_virtual_control
         self.w_du = weight_control_smoothness
         self.bank_rate_rows = bank_rate_rows
@@ -144,6 +144,14 @@ class EnergyTrapezoid:
         self.quad_w = w  # trapezoid weights of the running cost
         self._P: sp.csc_matrix | None = None  # depends on the grid: rebuilt on the next build
 
+    def set_weights(self, trust_region: float, regularization: Array) -> None:
+        """New trust-region weight and per-node regularization weights (K,) for the next
+        build: values only, the pattern stays."""
+        if trust_region != self.w_tr:
+            self.w_tr = trust_region
+            self._P = None
+        self.w_reg = np.asarray(regularization, dtype=float).copy()
+
     def _smoothness_weights(self) -> Array:
         """Per-interval weight c_i of the control-smoothness term: a penalty on the rate du/de."""
         return self.w_du * np.mean(self.h) / self.h
@@ -183,7 +191,7 @@ class EnergyTrapezoid:
         direction = np.where(
             norm[:, None] > 1e-9, d.u_ref / np.maximum(norm, 1e-9)[:, None], np.array([1.0, 0.0])
         )
-        q_u = -self.w_reg * self.quad_w[:, None] * direction
+        q_u = -(self.w_reg * self.quad_w)[:, None] * direction
         # smoothness acts on the step of the control differences, so it vanishes (value and
         # gradient) at convergence and does not bias the optimum: the linear part of
         # c_i |D u - D ubar|^2 is -2 c_i D ubar . D u

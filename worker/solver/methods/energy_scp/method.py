@@ -9,7 +9,10 @@ V(r, e) replaces eq. 8's approximation; the trust region is scaled per state; vi
 added only when a subproblem is infeasible, and then penalized and reported; after two
 iterations the nodes are re-spaced evenly in flight time (again when the flight time moves);
 the bank step between nodes is bounded, a step is not converged while the bank chatters or the
-control cone is slack (then the controls move onto the circle keeping their vertical lift).
+control cone is slack (then the controls move onto the circle keeping their vertical lift); the
+trust-region and regularization weights are relaxed after the first iterations and a step is
+converged only once they are and the running costs are stationary (the paper's fixed weights
+creep towards the optimum and its state test stops them short, docs/methods/energy-scp.md).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from worker.solver.methods.energy_scp.controls import GAP_TOL, bank_chatter, lif
 from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
+from worker.solver.methods.energy_scp.regularization import ConeRegularization
 from worker.solver.models.layout import ENERGY
 from worker.solver.models.point_mass import (
     EnergyDerivatives,
@@ -35,10 +39,11 @@ from worker.solver.models.point_mass import (
     energy_rates,
     time_state_from_energy,
 )
+from worker.solver.objectives import RUNNING_COSTS
 from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
-from worker.solver.scp.trust import FixedTrustWeight
+from worker.solver.scp.trust import RelaxingTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
 from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
@@ -77,7 +82,20 @@ class EnergyScp:
         self.r_ceiling = 1.0 + 200e3 / problem.scales.radius_m
         self.r_lower: Array | None = None
         self.regrid_done = 0
-        self.trust = FixedTrustWeight(options.weight_trust_region)
+        self.trust = RelaxingTrustWeight(
+            options.weight_trust_region,
+            options.weight_trust_region_min,
+            options.trust_relax_factor,
+            options.trust_hold_iterations,
+        )
+        self.regularization = ConeRegularization(
+            options.nodes,
+            options.weight_regularization,
+            options.weight_regularization_min,
+            options.trust_hold_iterations,
+        )
+        self.values: dict[str, float] = {}
+        self.previous_values: dict[str, float] = {}
         self.terminal = terminal_rows(problem, ENERGY, fixed="hard")
         self.tol = ENERGY.deltas_from_si(options.stop_tolerance, problem.scales)
         self.next_ed: EnergyDerivatives | None = None
@@ -96,7 +114,7 @@ class EnergyScp:
             path_limits=self.problem.limits.any,
             virtual_control=virtual_control,
             weight_trust_region=self.trust.weight,
-            weight_regularization=o.weight_regularization,
+            weight_regularization=self.regularization.weights,
             weight_virtual_control=o.weight_virtual_control,
             weight_control_smoothness=o.weight_control_smoothness,
             bank_rate_rows=True,
@@ -116,7 +134,7 @@ class EnergyScp:
                     f"(node {bad}); raise the limits or change the energy range",
                 )
         self.next_ed = energy_dynamics(x, u, e, p.forces, p.omega)
-        self.objective = EnergyObjective(p, e, x, self.next_ed, self.scale, self.trust.weight)
+        self.objective = EnergyObjective(p, e, x, self.next_ed, self.scale, self.trust.initial)
         return EnergyIterate(e, x, u, e, x, u)
 
     def linearize(self, reference: EnergyIterate) -> EnergyDerivatives:
@@ -206,6 +224,7 @@ class EnergyScp:
             x_next = np.where(corrected, x_ref + o.post_correction_step * (sub.x - x_ref), sub.x)
         self.change = np.max(np.abs(x_next - x_ref), axis=0)
         values = self.objective.values(sub.x, rates)
+        self.previous_values, self.values = self.values, values
         record, self.virtual = iteration_record(
             self, iteration, sub, solution, values, lin_err, corrected
         )
@@ -215,8 +234,10 @@ class EnergyScp:
         self, reference: EnergyIterate, proposal: scp.Proposal[EnergyIterate]
     ) -> scp.Judgement[EnergyIterate, EnergyDerivatives]:
         """Every step is taken; small when no state moved more than its tolerance (eq. 37) on
-        a grid that has been used once, the bank does not chatter and the control cone is
+        a grid that has been used once, the trust-region weight has been relaxed to its floor,
+        every running cost is stationary, the bank does not chatter and the control cone is
         tight (else the reference's controls are projected onto it and the iteration goes on).
+        Then the trust and regularization weights are updated for the next subproblem.
         Not converged after ``REGRID_AFTER`` iterations, the grid is re-spaced evenly in flight
         time (which resolves the terminal maneuver that a grid even in energy crowds into its
         last intervals), and again whenever the flight time has moved (``regrid_due``)."""
@@ -225,8 +246,16 @@ class EnergyScp:
         if chatter:
             proposal.record.extra["bank_chatter_nodes"] = chatter
         small = (
-            bool(np.all(self.change < self.tol)) and iteration > self.regrid_done and not chatter
+            bool(np.all(self.change < self.tol))
+            and iteration > self.regrid_done
+            and not chatter
+            and self.trust.relaxed
+            and self.stationary()
         )
+        step = ((proposal.reference.x - reference.x) / self.scale[None, :]).ravel()
+        self.trust.after_iteration(iteration, step)
+        self.regularization.after_iteration(iteration, proposal.reference.u_solution)
+        self.tr.set_weights(self.trust.weight, self.regularization.weights)
         verdict: scp.Judgement[EnergyIterate, EnergyDerivatives] = scp.Judgement(
             accepted=True, small=small, virtual_control=self.virtual
         )
@@ -243,6 +272,19 @@ class EnergyScp:
             self.regrid_done = iteration + 1
             proposal.record.extra["regrid"] = True
         return verdict
+
+    def stationary(self) -> bool:
+        """Every running cost changed by less than ``stop_tolerance.relative_cost`` of its
+        value over the last iteration (terminal costs are states: the state test covers
+        them)."""
+        tol = self.options.stop_tolerance.relative_cost
+        for name, value in self.values.items():
+            if name not in RUNNING_COSTS:
+                continue
+            before = self.previous_values.get(name)
+            if before is None or abs(value - before) > tol * max(abs(value), abs(before)):
+                return False
+        return True
 
     def trajectory(self, reference: EnergyIterate) -> OptimizedTrajectory:
         """The solution's nodes as a time-form trajectory: V from (r, e), time by the

@@ -55,5 +55,6 @@ def iteration_record(
         nodes_post_corrected=int(np.count_nonzero(np.any(corrected, axis=1))),
         relaxation_gap=float(np.max(1.0 - np.linalg.norm(sub.u, axis=1))),
         **solver_fields(solution),
+        extra={"weight_trust_region": method.trust.weight},
     )
     return record, vc_norm
