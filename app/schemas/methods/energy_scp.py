@@ -130,7 +130,8 @@ class EnergyScpOptions(ScpRunOptions):
         gt=0,
         description="Weight on the trust-region slack (w_tr) for the first "
         "trust_hold_iterations; then it is multiplied by trust_relax_factor per iteration down "
-        "to weight_trust_region_min, and a step is called converged only at that weight.",
+        "to weight_trust_region_min (heavier again after a step that swings back); a step is "
+        "called converged only once the weight has reached that floor.",
     )
     weight_trust_region_min: float = Field(
         1e-5, gt=0, description="Lightest trust-region weight (see weight_trust_region)."

@@ -1,10 +1,10 @@
 """Globalization strategies: how the weight of a penalized trust region follows the iterates.
 
-Paper 000 keeps its trust-region weight fixed (``FixedTrustWeight``; the energy method relaxes
-it after its first iterations, ``RelaxingTrustWeight``); the time-domain method
-adapts it to the defect of each step (``DefectTrustWeight``: paper 002 keeps it fixed, which
-stalls or wanders on other problems). Further strategies (a line search or filter, paper 003;
-the SCvx ratio test, paper 001) go here beside them.
+Paper 000 keeps its trust-region weight fixed; the energy method holds it for the first
+iterations and then relaxes it (``RelaxingTrustWeight``; a factor of 1 keeps the paper's); the
+time-domain method adapts it to the defect of each step (``DefectTrustWeight``: paper 002 keeps
+it fixed, which stalls or wanders on other problems). Further strategies (a line search or
+filter, paper 003; the SCvx ratio test, paper 001) go here beside them.
 """
 
 from __future__ import annotations
@@ -18,18 +18,6 @@ Array = np.ndarray
 
 TRUST_WEIGHT_MAX = 1e3
 """Heaviest trust weight: beyond it a step is too short to move the iterates at all."""
-
-
-@dataclass
-class FixedTrustWeight:
-    """A constant trust-region weight (paper 000, Table 1)."""
-
-    weight: float
-
-    @property
-    def initial(self) -> float:
-        """The weight the run started with."""
-        return self.weight
 
 
 @dataclass
