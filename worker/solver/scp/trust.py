@@ -20,6 +20,15 @@ TRUST_WEIGHT_MAX = 1e3
 """Heaviest trust weight: beyond it a step is too short to move the iterates at all."""
 
 
+def step_cosine(step: Array, last: Array | None) -> float:
+    """Cosine between ``step`` and the previous step ``last`` (0 without one, or for a zero
+    step): below a negative threshold the iterates swing back."""
+    if last is None:
+        return 0.0
+    norm = float(np.linalg.norm(step) * np.linalg.norm(last))
+    return float(np.dot(step, last)) / norm if norm > 0.0 else 0.0
+
+
 @dataclass
 class RelaxingTrustWeight:
     """The paper's weight for the first ``hold`` iterations, then ``factor`` times lighter per
@@ -50,9 +59,7 @@ class RelaxingTrustWeight:
         last, self._last_step = self._last_step, step
         if iteration < self.hold:
             return
-        norm = float(np.linalg.norm(step) * np.linalg.norm(last)) if last is not None else 0.0
-        cosine = float(np.dot(step, last)) / norm if norm > 0.0 and last is not None else 0.0
-        if cosine < -self.reversal_cosine:
+        if step_cosine(step, last) < -self.reversal_cosine:
             self.weight = min(self.weight / self.factor**2, self.initial)
         else:
             self.weight = max(self.weight * self.factor, self.floor)
@@ -81,11 +88,7 @@ class DefectTrustWeight:
 
     def reversal(self, step: Array) -> float:
         """Cosine between ``step`` and the last accepted step (0 for the first)."""
-        last = self._last_step
-        if last is None:
-            return 0.0
-        norm = float(np.linalg.norm(step) * np.linalg.norm(last))
-        return float(np.dot(step, last)) / norm if norm > 0.0 else 0.0
+        return step_cosine(step, self._last_step)
 
     def accepted(self, step: Array, reversal: float, defect: float) -> None:
         """Update after an accepted step with its reversal cosine and defect (scaled units)."""
