@@ -141,7 +141,9 @@ def test_energy_divergence_is_a_failed_result_not_a_traceback() -> None:
     streamed: list[dict[str, Any]] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # the diverged iterate's sqrt of < 0
-        doc = ProblemDocument.model_validate(_heat_limited_hard_point(41))
+        raw = _heat_limited_hard_point(41)
+        raw["method"]["weight_terminal_penalty"] = None  # the paper's equality rows leap away
+        doc = ProblemDocument.model_validate(raw)
         result = solve_problem(doc, on_iteration=streamed.append)
     _finite_json(result)
     assert result["status"] == "failed"
@@ -155,6 +157,22 @@ def test_energy_divergence_is_a_failed_result_not_a_traceback() -> None:
     trajectory = result["trajectory"]  # the last sound iterate, every value finite
     assert all(v is not None for v in trajectory["longitude_deg"] + trajectory["time_s"])
     assert result["verification"] is not None
+
+
+@pytest.mark.slow
+def test_an_unreachable_hard_terminal_point_is_reported_infeasible_with_its_miss() -> None:
+    # 700 kW/m^2 is below what the vehicle can hold on the way to (20, 60) deg (the NLP finds
+    # even 750 kW/m^2 infeasible for the built-in point): the exact penalty's miss stays
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        result = solve_problem(ProblemDocument.model_validate(_heat_limited_hard_point(41)))
+    _finite_json(result)
+    assert result["status"] == "failed"
+    assert result["failure"]["code"] == "infeasible"
+    message = result["failure"]["message"]
+    assert "virtual control did not vanish (norm" in message
+    assert "terminal latitude_deg off by" in message and "heat_rate_W_m2 peaks at" in message
+    assert result["history"][-1]["virtual_control_norm"] > 1e-3
 
 
 @pytest.mark.slow

@@ -67,6 +67,14 @@ class EnergyScpOptions(ScpRunOptions):
         default_factory=EnergyStopTolerance,
         description="Per-state change below which the iteration has converged.",
     )
+    defect_correction: bool = Field(
+        True,
+        description="Correct the trapezoid by its error at the reference: each interval is "
+        "integrated from its node under the bank the verification flies (RK4) and the "
+        "difference is added to the dynamics rows, so a converged trajectory obeys the exact "
+        "dynamics between nodes at any node count and the running costs are the exact "
+        "integrals (false: the paper's plain trapezoid).",
+    )
     post_correction: bool = Field(
         True, description="Shorten the step where the linearization error is large."
     )
@@ -90,7 +98,7 @@ class EnergyScpOptions(ScpRunOptions):
         "wherever the optimum swings it.",
     )
     weight_regularization_min: float = Field(
-        1.0, ge=0, description="Lightest per-node regularization weight (see above)."
+        0.05, ge=0, description="Lightest per-node regularization weight (see above)."
     )
     weight_control_smoothness: float = Field(
         0.1,
@@ -148,6 +156,16 @@ class EnergyScpOptions(ScpRunOptions):
         ge=0,
         description="Iterations at the full trust-region and regularization weights before "
         "both are relaxed.",
+    )
+    weight_terminal_penalty: float | None = Field(
+        20.0,
+        gt=0,
+        description="Fixed terminal conditions are held by an exact L1 penalty on their miss, "
+        "this weight per trust-region unit of the state, instead of equality rows: an "
+        "equality on a far target makes the first steps leap (tens of degrees of longitude) "
+        "and the iterates settle on a worse local optimum. The miss counts as virtual "
+        "control, so a result converges only once it vanishes, and a target that cannot be "
+        "reached is reported with its miss. null: equality rows (the paper's).",
     )
     virtual_control: Literal["off", "auto", "on"] = Field(
         "auto",

@@ -58,8 +58,9 @@ def _last_node(d: SubproblemData) -> Array:
 
 def dynamics_block(tr: EnergyTrapezoid) -> RowBlock[SubproblemData]:
     """Rows nx i + j: S_j dx_{i+1,j} - S_j dx_{i,j} - h_i/2 (A_i S dx_i + A_{i+1} S dx_{i+1}
-    + B_i u_i + B_{i+1} u_{i+1}) [- nu_i,j] = the trapezoid's defect of the reference; the
-    step h follows the current grid."""
+    + B_i u_i + B_{i+1} u_{i+1}) [- nu_i,j] = the trapezoid's defect of the reference (plus its
+    discretization error there when the deferred correction is on); the step h follows the
+    current grid."""
     N, nx = tr.N, tr.nx
     S = tr.S
     eye_s = np.eye(nx)[None, :, :] * S[None, :, None]
@@ -84,7 +85,10 @@ def dynamics_block(tr: EnergyTrapezoid) -> RowBlock[SubproblemData]:
         """The trapezoid's defect of the reference on the current grid."""
         h = tr.h
         c = d.f - np.einsum("kjm,km->kj", d.B, d.u_ref)
-        return (-(d.x_ref[1:] - d.x_ref[:-1]) + 0.5 * h[:, None] * (c[:-1] + c[1:])).ravel()
+        out = -(d.x_ref[1:] - d.x_ref[:-1]) + 0.5 * h[:, None] * (c[:-1] + c[1:])
+        if d.defect is not None:  # deferred correction: the exact interval map at the reference
+            out = out + d.defect
+        return out.ravel()
 
     return RowBlock("dynamics", "zero", N * nx, terms, rhs=rhs)
 

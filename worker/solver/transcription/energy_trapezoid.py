@@ -43,6 +43,7 @@ class SubproblemData:
     radius_lower: Array | None  # (K,) path-limit bound on r, None when no limit
     x0: Array  # (nx,) initial state
     bank_step_max: Array | None = None  # (N,) bound on |sigma_{i+1} - sigma_i| (bank-rate rows)
+    defect: Array | None = None  # (N, nx) the trapezoid's error at the reference (energy_defect)
 
 
 @dataclass

@@ -12,7 +12,10 @@ the bank step between nodes is bounded, a step is not converged while the bank c
 control cone is slack (then the controls move onto the circle keeping their vertical lift); the
 trust-region and regularization weights are relaxed after the first iterations and a step is
 converged only once they are and the running costs are stationary (the paper's fixed weights
-creep towards the optimum and its state test stops them short, docs/methods/energy-scp.md).
+creep towards the optimum and its state test stops them short); near convergence the
+trapezoid is corrected by its error on each interval (transcription.energy_defect), so the
+converged trajectory is the one its controls fly at any node count; fixed terminal conditions
+are held by an exact L1 penalty whose miss must vanish (docs/methods/energy-scp.md).
 """
 
 from __future__ import annotations
@@ -39,12 +42,13 @@ from worker.solver.models.point_mass import (
     energy_rates,
     time_state_from_energy,
 )
-from worker.solver.objectives import RUNNING_COSTS
+from worker.solver.objectives import RUNNING_COSTS, energy_running_density, trapezoid
 from worker.solver.path_limits import radius_lower_bound
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import RelaxingTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
+from worker.solver.transcription.energy_defect import exact_increments, trapezoid_defect
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
 from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
 from worker.solver.transcription.terminal import terminal_rows
@@ -53,6 +57,10 @@ Array = np.ndarray
 REGRID_AFTER = 2
 """Iteration after which the nodes are re-spaced evenly in the iterate's flight time."""
 REGRID_SHIFT = 12.0
+DEFECT_SUBSTEPS = 8
+"""RK4 steps per interval of the deferred correction (energy_defect)."""
+NEAR_FACTOR = 10.0
+"""The deferred correction starts once every state step is below this many tolerances."""
 """Re-space again when the time-even grid moved a node by more than this many mean intervals."""
 
 
@@ -96,12 +104,21 @@ class EnergyScp:
         )
         self.values: dict[str, float] = {}
         self.previous_values: dict[str, float] = {}
-        self.terminal = terminal_rows(problem, ENERGY, fixed="hard")
+        penalty = options.weight_terminal_penalty
+        self.terminal = (
+            terminal_rows(problem, ENERGY, fixed="hard")
+            if penalty is None
+            else terminal_rows(
+                problem, ENERGY, fixed="virtual", virtual_weight=penalty, trust_units=self.scale
+            )
+        )
         self.tol = ENERGY.deltas_from_si(options.stop_tolerance, problem.scales)
         self.next_ed: EnergyDerivatives | None = None
         self.data: SubproblemData | None = None
         self.tr = self.transcription(options.virtual_control == "on")
         self.extra: dict[str, Any] = {}
+        self.cost_correction: dict[str, float] = {}
+        self.correcting = False
 
     def transcription(self, virtual_control: bool) -> EnergyTrapezoid:
         """The trapezoidal SOCP on the current grid, with or without virtual control."""
@@ -161,8 +178,37 @@ class EnergyScp:
             radius_lower=self.r_lower,
             x0=self.problem.y0[list(TIME_INDEX)],
             bank_step_max=self.bank_step_max(reference.e, linearization),
+            defect=self.defect(reference, linearization),
         )
         return self.tr.build(self.data)
+
+    def defect(self, reference: EnergyIterate, ed: EnergyDerivatives) -> Array | None:
+        """The trapezoid's error on each interval of ``reference`` (None when the deferred
+        correction is off); keeps the running costs' exact-minus-trapezoid for ``propose``."""
+        if not self.correcting:
+            self.cost_correction = {}
+            return None
+        p, e = self.problem, reference.e
+        running = [t.name for t in p.objective if t.name in RUNNING_COSTS]
+
+        def densities(x: Array, rates: Any) -> Array:
+            columns = [energy_running_density(p, name, x, rates) for name in running]
+            return np.column_stack(columns) if columns else np.zeros((x.shape[0], 0))
+
+        inc = exact_increments(
+            e,
+            reference.x,
+            reference.u,
+            lambda x, u, ee: energy_rates(x, u, ee, p.forces, p.omega),
+            densities,
+            DEFECT_SUBSTEPS,
+        )
+        self.cost_correction = {
+            name: float(np.sum(inc.running[:, j]))
+            - trapezoid(energy_running_density(p, name, reference.x, ed), e)
+            for j, name in enumerate(running)
+        }
+        return trapezoid_defect(e, reference.x, ed.f, inc)
 
     def bank_step_max(self, e: Array, ed: EnergyDerivatives) -> Array:
         """The largest bank change of each interval: ``bank_step_max_deg``, or less when the
@@ -224,6 +270,8 @@ class EnergyScp:
             x_next = np.where(corrected, x_ref + o.post_correction_step * (sub.x - x_ref), sub.x)
         self.change = np.max(np.abs(x_next - x_ref), axis=0)
         values = self.objective.values(sub.x, rates)
+        for name, correction in self.cost_correction.items():
+            values[name] += correction  # the exact quadrature where the intervals are exact
         self.previous_values, self.values = self.values, values
         record, self.virtual = iteration_record(
             self, iteration, sub, solution, values, lin_err, corrected
@@ -260,6 +308,11 @@ class EnergyScp:
             accepted=True, small=small, virtual_control=self.virtual
         )
         ref = proposal.reference
+        if self.options.defect_correction and not self.correcting and self.near(small):
+            # the plain trapezoid is (nearly) converged: from here on its error is corrected
+            self.correcting = True
+            verdict.small = small = False
+            proposal.record.extra["defect_correction"] = True
         if small and proposal.record.relaxation_gap > GAP_TOL:
             # converged inside the disc: the relaxation is not exact, so the lift it flies is
             # not the vehicle's; continue from the bank that flies the same vertical lift
@@ -272,6 +325,13 @@ class EnergyScp:
             self.regrid_done = iteration + 1
             proposal.record.extra["regrid"] = True
         return verdict
+
+    def near(self, small: bool) -> bool:
+        """When the deferred correction starts: on an iterate the plain trapezoid calls
+        converged, or earlier once the trust weight is relaxed and every state moved less than
+        ``NEAR_FACTOR`` times its tolerance (the correction is small there; from a far iterate
+        it is not, and the exact interval maps of a wild reference mislead the step)."""
+        return small or (self.trust.relaxed and bool(np.all(self.change < NEAR_FACTOR * self.tol)))
 
     def stationary(self) -> bool:
         """Every running cost changed by less than ``stop_tolerance.relative_cost`` of its
@@ -288,13 +348,25 @@ class EnergyScp:
 
     def trajectory(self, reference: EnergyIterate) -> OptimizedTrajectory:
         """The solution's nodes as a time-form trajectory: V from (r, e), time by the
-        trapezoid of dt/de."""
+        trapezoid of dt/de, or integrated over each interval once the deferred correction is
+        on (as its states are)."""
         p = self.problem
         e, x, u = reference.e_solution, reference.x_solution, reference.u_solution
         ed = energy_dynamics(x, u, e, p.forces, p.omega)
         y, _ = time_state_from_energy(x, e)
         dt_de = 1.0 / ed.edot
-        t = np.concatenate([[0.0], np.cumsum(0.5 * (dt_de[1:] + dt_de[:-1]) * np.diff(e))])
+        if self.correcting:  # each interval's flight time integrated as its states are
+            dt = exact_increments(
+                e,
+                x,
+                u,
+                lambda xs, us, es: energy_rates(xs, us, es, p.forces, p.omega),
+                lambda xs, r: (1.0 / r.edot)[:, None],
+                DEFECT_SUBSTEPS,
+            ).running[:, 0]
+        else:
+            dt = 0.5 * (dt_de[1:] + dt_de[:-1]) * np.diff(e)
+        t = np.concatenate([[0.0], np.cumsum(dt)])
         bank = np.arctan2(u[:, 1], u[:, 0])
         return OptimizedTrajectory("energy", e, y, t, bank)
 

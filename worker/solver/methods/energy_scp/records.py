@@ -28,7 +28,17 @@ def iteration_record(
 ) -> tuple[IterationRecord, float]:
     """The record of the unpacked solution ``sub`` and its virtual-control norm."""
     p, o, tr = method.problem, method.options, method.tr
-    vc_norm = float(np.sum(np.abs(sub.virtual_control))) if sub.virtual_control is not None else 0.0
+    dynamic_vc = (
+        float(np.sum(np.abs(sub.virtual_control))) if sub.virtual_control is not None else 0.0
+    )
+    vc_norm = dynamic_vc
+    # fixed terminal conditions held by an exact penalty: their miss, in trust units, is
+    # virtual control that must vanish (as PTR's terminal buffers, paper 002 sec. IV)
+    virtual = np.array([t.virtual for t in tr.soft], dtype=bool)
+    if np.any(virtual):
+        units = method.scale[[t.state for t in tr.soft if t.virtual]]
+        vc_norm += float(np.sum(sub.soft_slacks[virtual] / units))
+    soft_weights = np.array([t.weight for t in tr.soft if not t.virtual])
     tr_slack = float(np.sum(sub.dx_scaled**2))
     scales = method.objective.scale
     record = IterationRecord(
@@ -41,11 +51,14 @@ def iteration_record(
         subproblem_cost=float(solution.objective if solution.objective is not None else np.nan),
         cost_terms={
             **{f"objective:{n}": v for n, v in values.items()},
-            "soft_terminal": float(np.dot([t.weight for t in tr.soft], sub.soft_slacks))
-            if tr.soft
+            "soft_terminal": float(np.dot(soft_weights, sub.soft_slacks[~virtual]))
+            if soft_weights.size
             else 0.0,
             "trust_region": float(method.trust.weight * tr_slack),
-            "virtual_control": o.weight_virtual_control * vc_norm if tr.virtual_control else 0.0,
+            "virtual_control": float(
+                np.dot([t.weight for t in tr.soft if t.virtual], sub.soft_slacks[virtual])
+                + o.weight_virtual_control * dynamic_vc
+            ),
         },
         objective_value=next(iter(values.values())) if len(values) == 1 else None,
         max_state_change=ENERGY.deltas_to_si(method.change, p.scales),
