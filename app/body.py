@@ -4,7 +4,9 @@ The routes that take a problem read their body through :func:`problem_body` inst
 FastAPI parse it, so that
 
 * the caller is authenticated first: a malformed body without a key is a 401, not a 400/422;
-* decoding and checking run in the thread pool, never on the event loop;
+* decoding and checking run in the thread pool, never on the event loop, and a client's large
+  bodies are read and decoded one at a time, within a share of the process's time
+  (:mod:`app.body_lanes`);
 * a structural check bounds the work before validation: no value nests deeper than
   :data:`MAX_DEPTH`, no array has more than :data:`MAX_ARRAY_ITEMS` items, no object more than
   :data:`MAX_OBJECT_MEMBERS` members, there are at most :data:`MAX_CONTAINERS` arrays and
@@ -24,7 +26,8 @@ from typing import Annotated, Any
 from fastapi import Depends, Request
 from starlette.concurrency import run_in_threadpool
 
-from app.deps import PrincipalDep
+from app.body_lanes import is_large
+from app.deps import PrincipalDep, ServiceDep
 from app.errors import ApiError, malformed_json, undecodable_body
 from app.schemas import FieldIssue, dotted_path
 
@@ -198,11 +201,16 @@ def decode_body(raw: bytes, content_type: str | None) -> Any:
     return value
 
 
-async def problem_body(request: Request, principal: PrincipalDep) -> Any:
-    """The request's JSON body, read once the caller is authenticated, decoded in a thread."""
-    del principal  # only its order matters: the key is checked before the body is read
-    raw = await request.body()
-    return await run_in_threadpool(decode_body, raw, request.headers.get("content-type"))
+async def problem_body(request: Request, service: ServiceDep, principal: PrincipalDep) -> Any:
+    """The request's JSON body, read once the caller is authenticated, decoded in a thread; a
+    large body through its client's lane (:mod:`app.body_lanes`)."""
+    content_type = request.headers.get("content-type")
+    if not is_large(request.headers.get("content-length")):
+        raw = await request.body()
+        return await run_in_threadpool(decode_body, raw, content_type)
+    async with service.body_lanes.lane(principal.client):
+        raw = await request.body()
+        return await run_in_threadpool(decode_body, raw, content_type)
 
 
 ProblemBody = Annotated[Any, Depends(problem_body)]

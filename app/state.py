@@ -1,12 +1,13 @@
 """What the running API holds: settings, database, dispatcher, event waker, metrics registry and
-rate limiter."""
+rate limiter, body lanes."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from prometheus_client import CollectorRegistry
 
+from app.body_lanes import BodyLanes
 from app.dispatch import Dispatcher
 from app.events import Waker
 from app.ratelimit import RateLimiter
@@ -27,3 +28,5 @@ class ServiceState:
     rate_limiter: RateLimiter
     streams: StreamHub
     """Caps and feeds the process's event streams (one shared watcher of their jobs)."""
+    body_lanes: BodyLanes = field(default_factory=BodyLanes)
+    """Reads and decodes each client's large request bodies one at a time."""

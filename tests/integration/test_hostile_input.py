@@ -158,7 +158,8 @@ def test_reads_stay_fast_while_another_client_posts_invalid_megabytes(
     """Two posting threads keep the API busy with 1 MB invalid bodies; another client's reads
     must keep a p95 of at most 100 ms. Before the bounds, such posts cost seconds of API CPU
     each and reads reached a p95 of 2.3 s. 100 ms is the acceptance figure; a read alone takes
-    a few ms, so the margin absorbs a two-core machine shared with the posting threads."""
+    a few ms and about 15 ms under these posts (the client's lane caps its share of the API's
+    time), so the margin absorbs a two-core machine shared with the posting threads."""
     stop = threading.Event()
     sent: list[int] = []
     assert api.process is not None
