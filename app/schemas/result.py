@@ -237,6 +237,9 @@ class VerificationTolerances(_Record):
     heading_deg: float = Field(..., description="Terminal heading, deg.")
     path_limit_relative: float = Field(..., description="Allowed excess over a path limit (1).")
     no_fly_zone_deg: float = Field(..., description="Allowed intrusion into a no-fly zone, deg.")
+    control_limit_relative: float = Field(
+        0.01, description="Allowed excess of the flown bank (and bank rate) over its limit (1)."
+    )
 
 
 class TerminalCheck(_Record):
@@ -249,7 +252,7 @@ class TerminalCheck(_Record):
 
 
 class PathPeak(_Record):
-    """The largest value of one path quantity on the propagated trajectory."""
+    """The largest value of one path quantity (or control) on the propagated trajectory."""
 
     max: Number = Field(..., description="Peak value, the quantity's unit (W/m^2, Pa, g0).")
     at_time_s: Number = Field(..., description="When it peaks, s.")
@@ -266,6 +269,15 @@ class PathMaxima(_Record):
     load_factor_g: PathPeak | None = Field(None, description="Load factor, g0.")
 
 
+class ControlPeaks(_Record):
+    """Peaks of the flown control between and at the nodes, against the control limits."""
+
+    bank_deg: PathPeak | None = Field(None, description="|bank angle|, deg.")
+    bank_rate_deg_s: PathPeak | None = Field(
+        None, description="|bank rate|, deg/s (only when the problem limits it)."
+    )
+
+
 class ZoneClearance(_Record):
     """The propagated trajectory's smallest clearance of one no-fly zone (negative: inside)."""
 
@@ -278,7 +290,9 @@ class ZoneClearance(_Record):
 class Verification(_Record):
     """Propagation of the optimized controls through the nonlinear dynamics, and its checks."""
 
-    feasible: bool = Field(..., description="Reached the end, hard targets, paths and zones met.")
+    feasible: bool = Field(
+        ..., description="Reached the end, hard targets, paths, zones and control limits met."
+    )
     reached_end: bool = Field(..., description="The propagation reached the trajectory's end.")
     integrator: Integrator
     tolerances: VerificationTolerances
@@ -294,6 +308,11 @@ class Verification(_Record):
     )
     path_maxima: PathMaxima
     no_fly_zones: list[ZoneClearance] = Field(default_factory=list)
+    control_limits: ControlPeaks = Field(
+        default_factory=ControlPeaks,
+        description="The flown bank (and bank rate) on the dense grid against the problem's "
+        "control limits: a method bounds them at the nodes, the flight between them too.",
+    )
     heat_load_J_m2: Number = Field(
         None, description="Integrated heat rate of the propagation, J/m^2 (null: no heat model)."
     )

@@ -2,9 +2,11 @@
 scenarios and on the scenario with an active no-fly zone.
 
 Acceptance figures: terminal velocity within 0.3 % of 971.03 m/s (independent NLP collocation,
-801 nodes), at most 15 iterations, propagated terminal residuals within Table 4's for 40 nodes,
-path limits within 1 % between nodes, an active zone entered by at most 0.05 deg; recorded with
-the commands in docs/methods/foh-ptr.md.
+801 nodes), converged within the default cap of 30 iterations, propagated terminal residuals
+within Table 4's for 40 nodes, path limits within 1 % between nodes, the flown bank within its
+80 deg between the nodes too, an active zone entered by at most 0.05 deg; recorded with the
+commands in docs/methods/foh-ptr.md. (The bound was 15 iterations, met by trajectories whose
+bank turned to 180 deg between nodes held at 80 deg; within the limit case 1 takes 25.)
 """
 
 from __future__ import annotations
@@ -51,7 +53,9 @@ def uniform() -> dict[str, Any]:
 
 def test_converges_with_small_residuals(adaptive: dict[str, Any], uniform: dict[str, Any]) -> None:
     for result in (adaptive, uniform):
-        assert result["timing"]["iterations"] <= 15
+        assert result["timing"]["iterations"] <= 30
+        bank = result["verification"]["control_limits"]["bank_deg"]
+        assert bank["within"] and bank["max"] <= 80.0 * 1.01, bank
         assert all(h["conic_status"] == "optimal" for h in result["history"])
         assert result["history"][-1]["virtual_control_norm"] <= 1e-6
         err = result["verification"]["terminal_error_vs_optimized"]
@@ -95,16 +99,19 @@ def test_terminal_velocity_matches_reference(
 ) -> None:
     """Acceptance: within 0.3 % of the 801-node collocation optimum, on each grid. 40 nodes give
     the bank fewer degrees of freedom, so the value may only fall short of the reference by that
-    much (measured 969.3 and 969.2 m/s); above it would mean a defect or a violated limit."""
+    much (measured 968.53 and 968.52 m/s with the bank held within its limit between the nodes;
+    969.3 and 969.2 before, when it turned to 180 deg there); above it would mean a defect or a
+    violated limit."""
     for result in (adaptive, uniform):
         vf = result["objective"]["value"]
         assert REFERENCE_VF_M_S * (1.0 - 0.003) <= vf <= REFERENCE_VF_M_S + 0.5, vf
 
 
 def test_first_order_step_stops_short() -> None:
-    """The paper's first-order PTR step (second_order false) with its damping converges early, on
-    a point the SQP step improves on by about 3 %: the curvature term is what reaches the
-    reference."""
+    """The paper's first-order PTR step (second_order false) with its damping ends short of the
+    optimum, on a point the SQP step improves on by about 3 %: the curvature term is what reaches
+    the reference. (It used to converge there; with the bank held within its limit between the
+    nodes it creeps on and runs out of its 30 iterations at 942 m/s, still short.)"""
     result = solve_problem(
         _doc(
             grid="uniform",
@@ -115,7 +122,7 @@ def test_first_order_step_stops_short() -> None:
             trust_factor=2.0,
         )
     )
-    assert result["status"] == "succeeded"
+    assert result["status"] == "succeeded" or result["failure"]["code"] == "max_iterations"
     assert result["objective"]["value"] < REFERENCE_VF_M_S * (1.0 - 0.02)
     assert not any(h["extra"]["second_order_step"] for h in result["history"])
 
@@ -184,7 +191,10 @@ def test_a_rejected_step_returns_to_its_reference_and_the_loop_goes_on(
 ) -> None:
     """A step whose linearization is not finite is recorded as rejected, the loop goes back to
     the reference that made it (discarding the curvature started for the rejected one) and
-    still converges. Rejection is forced once, at the third step's check."""
+    still converges, to within 0.1 % of the run without the rejection (measured 0.07 %: the
+    rejection changes the iterates' path, not the answer). Rejection is forced once, at the
+    third step's check."""
+    plain = _run_case_1().objective_terms["max_terminal_velocity"]
     checks = itertools.count(1)
     real = foh_ptr.finite
     monkeypatch.setattr(foh_ptr, "finite", lambda data: next(checks) != 3 and real(data))
@@ -193,4 +203,4 @@ def test_a_rejected_step_returns_to_its_reference_and_the_loop_goes_on(
     assert [r.iteration for r in rejected] == [3]
     assert out.status == "converged"
     vf = out.objective_terms["max_terminal_velocity"]
-    assert abs(vf - REFERENCE_VF_M_S) <= 0.003 * REFERENCE_VF_M_S
+    assert abs(vf / plain - 1.0) <= 0.001, (vf, plain)

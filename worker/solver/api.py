@@ -57,6 +57,14 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
             reasons.append(
                 f"no-fly zone {zone['name'] or ''} entered by {-zone['min_clearance_deg']:.4f} deg"
             )
+    for name, entry in report.get("control_limits", {}).items():
+        if not entry["within"]:
+            reasons.append(
+                f"the flown {name} reaches {entry['max']:.4g} at t = {entry['at_time_s']:.1f} s "
+                f"({entry['ratio']:.4f} of its limit {entry['limit']:g})"
+            )
+    if not report["feasible"] and not reasons:  # no check may fail unnamed
+        reasons.append("the verification found the trajectory infeasible")
     return reasons
 
 

@@ -39,6 +39,27 @@ class OptimizedTrajectory:
     bank_rate: Array | None = None  # (K,) d(bank)/dt at the nodes (time grid), first-order hold
 
 
+def bank_profile_at(traj: OptimizedTrajectory, s: Array) -> Array:
+    """``bank_profile`` at many grid values at once (the same profile, vectorized)."""
+    grid, bank = traj.grid, traj.bank
+    s = np.asarray(s, dtype=float)
+    if traj.bank_rate is None or traj.grid_kind != "time":
+        return np.interp(s, grid, bank)
+    k = np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2)
+    h = grid[k + 1] - grid[k]
+    dt = np.clip(s - grid[k], 0.0, h)
+    w0, w1 = traj.bank_rate[k], traj.bank_rate[k + 1]
+    return np.asarray(bank[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
+
+
+def bank_rate_at(traj: OptimizedTrajectory, t: Array, bank: Array) -> Array:
+    """The flown bank rate at nondimensional times ``t`` (``bank`` the flown bank there): the
+    first-order-hold rate where the trajectory carries one, else the slope of ``bank``."""
+    if traj.bank_rate is not None and traj.grid_kind == "time":
+        return np.interp(t, traj.grid, traj.bank_rate)
+    return np.gradient(bank, t) if t.size > 1 else np.zeros_like(t)
+
+
 def bank_profile(traj: OptimizedTrajectory, s: Any) -> float:
     """Bank angle at grid value ``s``: linear between nodes, or, with ``bank_rate`` on a time grid,
     the exact integral of the first-order-hold rate from the interval's node (piecewise quadratic).

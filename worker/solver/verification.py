@@ -7,7 +7,8 @@ bank is integrated exactly from each node (piecewise quadratic in time); it is e
 on the propagated state, and the integration (scipy DOP853, rtol 1e-10) stops where the method's
 trajectory ends (final energy or final time). The report compares the propagated end state with
 the targets and with the optimized trajectory, measures the largest deviation along the path,
-the path-limit maxima on a dense grid between nodes and the no-fly-zone clearance.
+the path-limit maxima on a dense grid between nodes, the no-fly-zone clearance, and the flown
+bank (and bank rate) against the control limits on the same grid.
 """
 
 from __future__ import annotations
@@ -27,7 +28,14 @@ from worker.solver.models.point_mass import time_dynamics
 from worker.solver.models.scalar_rates import time_rates
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem, TerminalTarget
-from worker.solver.trajectory import TIME_STATE_NAMES, Array, OptimizedTrajectory, bank_profile
+from worker.solver.trajectory import (
+    TIME_STATE_NAMES,
+    Array,
+    OptimizedTrajectory,
+    bank_profile,
+    bank_profile_at,
+    bank_rate_at,
+)
 
 StopCheck = Callable[[], bool]
 
@@ -61,7 +69,8 @@ def _poller(should_stop: StopCheck | None) -> Callable[[], None]:
 
 @dataclass(frozen=True)
 class VerificationTolerances:
-    """What 'feasible' means: terminal errors, relative path-limit excess, zone intrusion."""
+    """What 'feasible' means: terminal errors, relative path-limit excess, zone intrusion and
+    relative excess of the flown bank (and bank rate) over the problem's control limits."""
 
     altitude_m: float = 500.0
     longitude_deg: float = 0.1
@@ -71,6 +80,7 @@ class VerificationTolerances:
     heading_deg: float = 0.3
     path_limit_relative: float = 0.01
     no_fly_zone_deg: float = 0.05
+    control_limit_relative: float = 0.01
 
 
 def _energy(y: Array) -> Array:
@@ -229,9 +239,9 @@ def verify(
     )
     t_fine = t_fine[t_fine <= t_final]
     y_fine = sol.sol(t_fine).T
+    s_fine = _energy(y_fine.T) if traj.grid_kind == "energy" else t_fine
     alpha = None
     if traj.alpha_deg is not None:
-        s_fine = np.array([_energy(y) for y in y_fine]) if traj.grid_kind == "energy" else t_fine
         alpha = np.interp(s_fine, traj.grid, traj.alpha_deg)
     ft = problem.forces.terms(y_fine[:, 0], y_fine[:, 3], alpha)
     pv = path_values(problem.forces, problem.heat_model, y_fine[:, 0], y_fine[:, 3], ft)
@@ -273,11 +283,13 @@ def verify(
             }
         )
 
+    controls, controls_ok = _control_peaks(problem, traj, t_fine, s_fine, tol)
+
     heat_load = None
     if problem.heat_model is not None:
         q_nodes = pv.heat_rate
         heat_load = float(np.trapezoid(q_nodes, t_fine) * sc.time_s)
-    feasible = bool(reached_end and hard_ok and path_ok and zones_ok)
+    feasible = bool(reached_end and hard_ok and path_ok and zones_ok and controls_ok)
     return {
         "feasible": feasible,
         "reached_end": bool(reached_end),
@@ -289,5 +301,42 @@ def verify(
         "max_deviation_along_path": deviation,
         "path_maxima": path,
         "no_fly_zones": zones,
+        "control_limits": controls,
         "heat_load_J_m2": heat_load,
     }
+
+
+def _control_peaks(
+    problem: EntryProblem,
+    traj: OptimizedTrajectory,
+    t_fine: Array,
+    s_fine: Array,
+    tol: VerificationTolerances,
+) -> tuple[dict[str, Any], bool]:
+    """The largest |bank| (and |bank rate|, when the problem limits it) of the flown control on
+    the dense grid, against the problem's limits; and whether both hold. A method bounds its
+    controls at the nodes; between them the flown profile (quadratic in time under a
+    first-order-hold rate) may turn beyond the limit, which only this check sees."""
+    sc = problem.scales
+    bank = bank_profile_at(traj, s_fine)
+    checks: list[tuple[str, Array, float]] = [
+        ("bank_deg", np.degrees(np.abs(bank)), math.degrees(problem.bank_max))
+    ]
+    if problem.bank_rate_max is not None:
+        rate = np.abs(bank_rate_at(traj, t_fine, bank))
+        per_s = math.degrees(1.0) / sc.time_s
+        checks.append(("bank_rate_deg_s", rate * per_s, problem.bank_rate_max * per_s))
+    peaks: dict[str, Any] = {}
+    ok = True
+    for key, values, limit in checks:
+        at = int(np.argmax(values))
+        within = bool(values[at] <= limit * (1.0 + tol.control_limit_relative))
+        ok &= within
+        peaks[key] = {
+            "max": float(values[at]),
+            "at_time_s": float(t_fine[at] * sc.time_s),
+            "limit": limit,
+            "ratio": float(values[at]) / limit,
+            "within": within,
+        }
+    return peaks, ok

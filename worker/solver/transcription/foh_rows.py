@@ -3,9 +3,10 @@
 Equalities: the stitched interval dynamics E dz_{k+1} = Phi dz_k + B- dw_k + B+ dw_{k+1} + S ds_k
 + (x_prop - z_bar_{k+1}) (eq. 24, rows divided by the state scale), the initial state, the fixed
 terminal states and, on the adaptive grid, sum s_k = t_f (eq. 12). Nonnegative rows:
-|sigma| <= sigma_max, |w| <= w_max, the linearized log path limits (eq. 25-26), the linearized
-no-fly zones (eq. 27), the between-node rows, their L1 buffers, Delta_min <= s_k <= Delta_max with
-|s_k - s_bar_k| <= DeltaT_max (eq. 11), then the soft and range terminal rows.
+|sigma| <= sigma_max at the nodes and where the bank turns between them, |w| <= w_max, the
+linearized log path limits (eq. 25-26), the linearized no-fly zones (eq. 27), the between-node
+rows, their L1 buffers, Delta_min <= s_k <= Delta_max with |s_k - s_bar_k| <= DeltaT_max
+(eq. 11), then the soft and range terminal rows.
 """
 
 from __future__ import annotations
@@ -124,6 +125,68 @@ def bound_block(
     )
 
 
+def bank_vertex(z_bank: Array, w: Array, s: Array) -> tuple[Array, Array, Array, Array]:
+    """Where the first-order-hold bank of each interval turns, and its linearization there.
+
+    With the bank rate linear between the nodes, the bank over interval k is the quadratic
+    sigma(tau) = sigma_k + s_k (w_k a(tau) + w_{k+1} b(tau)), a = tau - tau^2 / 2, b = tau^2 / 2
+    (tau in [0, 1]): exact in (sigma_k, w_k, w_{k+1}) for a given s_k. Its extremum inside the
+    interval, where the rate changes sign, lies at tau* = w_k / (w_k - w_{k+1}); an interval
+    whose rate keeps its sign takes tau* = 1/2 (the bank is monotone there, between the node
+    values). Returns tau* (N,), sigma(tau*) (N,) and the coefficients of sigma(tau*) in w_k and
+    w_{k+1} (s_k a, s_k b) and in s_k (w_k a + w_{k+1} b), as (N, 2) and (N,).
+    """
+    w0, w1 = w[:-1], w[1:]
+    turns = w0 * w1 < 0.0
+    tau = np.full(w0.shape, 0.5)
+    tau[turns] = w0[turns] / (w0[turns] - w1[turns])
+    a, b = tau - 0.5 * tau * tau, 0.5 * tau * tau
+    rate_part = w0 * a + w1 * b
+    value = z_bank[:-1] + s * rate_part
+    return tau, value, np.stack([s * a, s * b], axis=1), rate_part
+
+
+def bank_vertex_block(sub: FohSubproblem) -> Block:
+    """|sigma| <= sigma_max where the bank turns inside each interval (``bank_vertex``), so the
+    flown bank, not only its node values, stays within the limit: without these rows a bank
+    rate that reverses within a long interval carried the bank to 180 deg between nodes held at
+    80 deg (paper 002 case 1, 40 nodes). Rows k (upper) and N + k (lower) on sigma_k, w_k,
+    w_{k+1} and, on the adaptive grid, s_k; at a converged reference tau* is the true turning
+    point, so the bound holds along the whole interval."""
+    N = sub.N
+    sigma = sub.state_index[4]
+    cols = [sub.col_z[:-1, sigma], sub.col_w[:-1], sub.col_w[1:]]
+    if sub.adaptive:
+        cols.append(sub.col_s)
+    col = np.stack(cols, axis=1)  # (N, 3 or 4)
+    rows = np.arange(N)[:, None]
+    Dz, Dw, Ds = sub.Dz[sigma], sub.Dw, sub.Ds
+
+    def coefficients(d: SubproblemData) -> Array:
+        """Scaled coefficients of sigma(tau*) on the interval's columns (N, 3 or 4)."""
+        _, _, on_rates, on_length = bank_vertex(d.z[:, sigma], d.w, d.s)
+        parts = [np.full((N, 1), Dz), on_rates * Dw]
+        if sub.adaptive:
+            parts.append(on_length[:, None] * Ds)
+        return np.concatenate(parts, axis=1)
+
+    def rhs(d: SubproblemData) -> Array:
+        """sigma_max - sigma(tau*) for the upper rows, then sigma_max + sigma(tau*)."""
+        value = bank_vertex(d.z[:, sigma], d.w, d.s)[1]
+        return np.concatenate([sub.bank_max - value, sub.bank_max + value])
+
+    return Block(
+        "bank_between_nodes",
+        "nonneg",
+        2 * N,
+        (
+            Term(rows, col, update=coefficients),
+            Term(N + rows, col, update=lambda d: -coefficients(d)),
+        ),
+        rhs=rhs,
+    )
+
+
 def inequality_blocks(sub: FohSubproblem) -> list[Block]:
     """Bank and bank-rate bounds, path, zone and between-node rows (each with its L1 buffer when
     weighted), the buffers' signs, the interval bounds and the soft and range terminal rows."""
@@ -131,7 +194,8 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
     r, th, ph, v, sigma = sub.state_index
     col_z, col_buf = sub.col_z, sub.col_buf
     blocks = [
-        bound_block("bank", col_z[:, sigma], Dz[sigma], sub.bank_max, lambda d: d.z[:, sigma])
+        bound_block("bank", col_z[:, sigma], Dz[sigma], sub.bank_max, lambda d: d.z[:, sigma]),
+        bank_vertex_block(sub),
     ]
     if sub.bank_rate_max is not None:
         blocks.append(bound_block("bank_rate", sub.col_w, sub.Dw, sub.bank_rate_max, lambda d: d.w))
