@@ -17,14 +17,17 @@ from app.schemas import ProblemDocument
 from tests.variants.cases import DATA, _load
 from worker.solver.api import solve_problem
 from worker.solver.methods.energy_scp.guess import energy_bounds, initial_guess
+from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.models.layout import ENERGY
 from worker.solver.models.point_mass import EnergyRates, energy_rates
+from worker.solver.objectives import energy_running_density
 from worker.solver.problem import build_problem
 from worker.solver.transcription.energy_defect import (
     exact_increments,
     interval_control,
     trapezoid_defect,
 )
+from worker.solver.transcription.energy_defect_compiled import compiled_increments
 from worker.solver.transcription.energy_grid import energy_grid
 
 Array = np.ndarray
@@ -121,6 +124,35 @@ def test_interval_maps_agree_with_dop853_on_the_entry_dynamics() -> None:
         time_worst = max(time_worst, abs(inc.running[i, 0] / sol.y[5, -1] - 1.0))
     assert worst < 2e-3
     assert time_worst < 5e-5
+
+
+@pytest.mark.parametrize("objective", ["min_heat_load", "min_time"])
+def test_the_compiled_increments_are_the_numpy_ones(objective: str) -> None:
+    """The compiled correction (``energy_defect_compiled``) against the numpy form on the same
+    41-node grid and swinging bank, with magnitudes below 1 (a slack cone): states to 1e-12 of
+    their trust units, running costs to 1e-12 relative (round-off of the same arithmetic)."""
+    problem = build_problem(
+        ProblemDocument.model_validate(_load(DATA / "energy-nodes-121.json").document())
+    )
+    params = compiled_parameters(problem.forces, problem.omega)
+    assert params is not None
+    e = energy_grid(*energy_bounds(problem), 41)
+    x, _ = initial_guess(problem, e)
+    bank = np.radians(np.linspace(60.0, -40.0, e.size))
+    size = np.linspace(1.0, 0.8, e.size)
+    u = np.column_stack([size * np.cos(bank), size * np.sin(bank)])
+
+    def rates(xs: Array, us: Array, es: Array) -> EnergyRates:
+        return energy_rates(xs, us, es, problem.forces, problem.omega)
+
+    def density(xs: Array, r: EnergyRates) -> Array:
+        return energy_running_density(problem, objective, xs, r)[:, None]
+
+    numpy_form = exact_increments(e, x, u, rates, density, 8)
+    compiled = compiled_increments(problem, params, e, x, u, [objective], 8)
+    units = ENERGY.trust_units(problem.scales)
+    assert np.max(np.abs(compiled.state - numpy_form.state) / units) < 1e-12
+    np.testing.assert_allclose(compiled.running, numpy_form.running, rtol=1e-12)
 
 
 def _coarse(correction: bool) -> dict[str, Any]:

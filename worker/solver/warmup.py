@@ -13,7 +13,7 @@ import numpy as np
 
 from worker.solver.constraints import path_compiled
 from worker.solver.models import bank_state_sweeps, flown_rates, scalar_rates
-from worker.solver.transcription import foh_hessian
+from worker.solver.transcription import energy_defect_compiled, foh_hessian
 
 _warmed = False
 
@@ -40,6 +40,7 @@ def warm_up() -> float:
     scalar_rates.time_rates(np.array([1.015, 0.0, 0.0, 0.9, 0.0, 0.0]), 1.0, 0.0, 0.1, 0.1, 0.06)
     foh_hessian.warm_up(params)
     flown_rates.warm_up(params)
+    energy_defect_compiled.warm_up(params)
     path_compiled.warm_up(params)
     _warmed = True
     return time.perf_counter() - start

@@ -35,6 +35,7 @@ from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, in
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
 from worker.solver.methods.energy_scp.regularization import ConeRegularization
+from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.models.layout import ENERGY
 from worker.solver.models.point_mass import (
     EnergyDerivatives,
@@ -49,6 +50,7 @@ from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import RelaxingTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.energy_defect import exact_increments, trapezoid_defect
+from worker.solver.transcription.energy_defect_compiled import compiled_increments
 from worker.solver.transcription.energy_grid import energy_grid, time_uniform_grid
 from worker.solver.transcription.energy_trapezoid import EnergyTrapezoid, SubproblemData
 from worker.solver.transcription.terminal import terminal_rows
@@ -122,6 +124,8 @@ class EnergyScp:
         self.extra: dict[str, Any] = {}
         self.cost_correction: dict[str, float] = {}
         self.correcting = False
+        self.compiled = compiled_parameters(problem.forces, problem.omega)
+        """The force parameters of the compiled correction (None: the numpy form)."""
         self.corrected_from = 0  # the first iteration whose costs are the corrected ones
         self.settled = 0  # consecutive iterations over which every running cost was stationary
 
@@ -200,14 +204,19 @@ class EnergyScp:
             columns = [energy_running_density(p, name, x, rates) for name in running]
             return np.column_stack(columns) if columns else np.zeros((x.shape[0], 0))
 
-        inc = exact_increments(
-            e,
-            reference.x,
-            reference.u,
-            lambda x, u, ee: energy_rates(x, u, ee, p.forces, p.omega),
-            densities,
-            DEFECT_SUBSTEPS,
-        )
+        if self.compiled is not None:  # the same integration, compiled
+            inc = compiled_increments(
+                p, self.compiled, e, reference.x, reference.u, running, DEFECT_SUBSTEPS
+            )
+        else:
+            inc = exact_increments(
+                e,
+                reference.x,
+                reference.u,
+                lambda x, u, ee: energy_rates(x, u, ee, p.forces, p.omega),
+                densities,
+                DEFECT_SUBSTEPS,
+            )
         self.cost_correction = {
             name: float(np.sum(inc.running[:, j]))
             - trapezoid(energy_running_density(p, name, reference.x, ed), e)
