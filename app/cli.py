@@ -228,5 +228,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_FAILED
 
 
+QUICK_EXIT_COMMANDS = frozenset({"solve"})
+"""One-shot commands that end the process at once after their output: no interpreter
+teardown, which after a solve (compiled kernels, the helper thread, scipy and numba state)
+took about half a second of a two-second run; every file they write is closed by then."""
+
+
+def entry() -> None:
+    """The ``trajopt`` console script: ``main``, then the exit (quick after a one-shot command)."""
+    argv = sys.argv[1:]
+    code = main(argv)
+    if argv and argv[0] in QUICK_EXIT_COMMANDS:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        except (BrokenPipeError, ValueError):
+            _quiet_stdout()
+            code = code or EXIT_FAILED
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -77,11 +77,17 @@ class ObjectiveValue(_Record):
 class Timing(_Record):
     """Where the time went: the whole optimization, the conic solver's share, verification."""
 
-    wall_s: float = Field(..., description="Optimization wall time (SCP loop), s.")
+    wall_s: float = Field(
+        ...,
+        description="Optimization wall time (SCP loop), s; the compiled kernels are loaded "
+        "before it starts (their loading counts in total_s).",
+    )
     conic_solve_s: float = Field(..., description="Sum of the conic solver's own solve times, s.")
     iterations: int = Field(..., description="SCP iterations run (length of history).")
     verification_s: float = Field(0.0, description="Propagation and checks, s.")
-    total_s: float = Field(0.0, description="Whole solve including model building, s.")
+    total_s: float = Field(
+        0.0, description="Whole solve including model building and kernel loading, s."
+    )
 
 
 class StateValues(BaseModel):

@@ -111,3 +111,26 @@ def test_cli_solves_a_scenario_and_writes_the_result(tmp_path: Path) -> None:
     assert "iter   1" in done.stderr  # per-iteration progress on stderr
     assert done.returncode == (0 if result["status"] == "succeeded" else 1)
     assert f"status: {result['status']}" in done.stdout
+
+
+def test_kernels_are_loaded_before_the_clock_only_for_methods_that_run_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``solve_problem`` loads the compiled kernels before it starts the optimization's clock
+    (so ``timing.wall_s`` is the optimization's own) for a method that declares
+    ``warm_kernels``, and not for one that does not (which loads what it uses on first call)."""
+    from worker.solver import api
+
+    calls: list[str] = []
+
+    def warm_up() -> float:
+        calls.append("warm")
+        return 0.0
+
+    monkeypatch.setattr(api, "warm_up", warm_up)
+    for name, expected in (("rlv-max-terminal-velocity", ["warm"]), ("rlv-min-heat-load", [])):
+        raw = dict(get_scenario(name).problem)
+        raw["method"] = {**raw["method"], "max_iterations": 1}
+        calls.clear()
+        api.solve_problem(ProblemDocument.model_validate(raw))
+        assert calls == expected, name

@@ -157,6 +157,9 @@ class MethodInfo:
     options_type: type[ScpRunOptions]
     check: SupportCheck
     run: Runner[Any]
+    warm_kernels: bool = False
+    """Whether the method's loop runs the compiled kernels whose loading (a few tenths of a
+    second from numba's cache) the caller should do before the clock starts."""
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready description with the default options of the method."""

@@ -25,4 +25,5 @@ METHOD = MethodInfo(
     options_type=FohPtrOptions,
     check=check_support,
     run=Runner("worker.solver.methods.foh_ptr.method", FohPtrOptions),
+    warm_kernels=True,
 )
