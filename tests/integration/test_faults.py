@@ -126,11 +126,23 @@ def wait_all_terminal(database_url: str, ids: list[str], timeout: float) -> dict
         time.sleep(0.2)
 
 
+LOG_GRACE_S = 10.0
+"""How long the stored-outcome log lines may trail the rows: a worker commits the outcome, stops
+the attempt's heartbeat thread, then logs (a fast job's row can be read before its line)."""
+
+
 def assert_counts(found: dict[str, Any], ids: list[str], workers: Workers) -> None:
     """accepted = terminal; one stored outcome per job; a result for every succeeded job."""
     assert sorted(found) == sorted(ids)
     assert all(r["status"] in TERMINAL for r in found.values()), found
+    by_worker = [
+        job_id for job_id, row in found.items() if row["error"] not in ("worker_lost", "time_limit")
+    ]
+    deadline = time.monotonic() + LOG_GRACE_S
     stored = workers.stored_outcomes()
+    while any(j not in stored for j in by_worker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+        stored = workers.stored_outcomes()
     for job_id, row in found.items():
         if row["error"] in ("worker_lost", "time_limit") and stored.get(job_id, 0) == 0:
             continue  # ended by the service's sweeper, no worker stored it
