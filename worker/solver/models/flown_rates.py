@@ -44,6 +44,19 @@ def flown_bank(s: float, kind: int, grid: Array, bank: Array, rate: Array) -> fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def point_time_rates(
+    r: float, ph: float, v: float, ga: float, ps: float, u1: float, u2: float, p: Array
+) -> tuple[tuple[float, float, float, float, float, float], float, float]:
+    """The six time-form rates at one point under the lift direction (u1, u2) (its magnitude
+    scales the lift), with the density and angle of attack there (for the running costs)."""
+    rho, _rho_r, alpha, _alpha_v, cl, _dcl, cd, _dcd = aero_terms(r, v, p)
+    qk = p[_KB] * rho * v * v
+    k = eom.kinematics(r, ph, v, ga, ps, False)
+    f = eom.rates(k, r, v, qk * cl, qk * cd, u1, u2, p[_OMEGA], False, True)
+    return (f[0], f[1], f[2], f[3], f[4], f[5]), rho, alpha
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def flown_rates(
     t: float, y: Array, kind: int, grid: Array, bank: Array, rate: Array, p: Array
 ) -> Array:
@@ -52,11 +65,7 @@ def flown_rates(
     r, ph, v, ga, ps = y[0], y[2], y[3], y[4], y[5]
     s = 1.0 / r - 0.5 * v * v if kind == LINEAR_IN_ENERGY else t
     sigma = flown_bank(s, kind, grid, bank, rate)
-    rho, _rho_r, _alpha, _alpha_v, cl, _dcl, cd, _dcd = aero_terms(r, v, p)
-    qk = p[_KB] * rho * v * v
-    k = eom.kinematics(r, ph, v, ga, ps, False)
-    lift, drag = qk * cl, qk * cd
-    f = eom.rates(k, r, v, lift, drag, math.cos(sigma), math.sin(sigma), p[_OMEGA], False, True)
+    f, _rho, _alpha = point_time_rates(r, ph, v, ga, ps, math.cos(sigma), math.sin(sigma), p)
     out = np.empty(6)
     for i in range(6):
         out[i] = f[i]

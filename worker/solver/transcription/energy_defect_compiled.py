@@ -17,8 +17,8 @@ import math
 import numpy as np
 from numba import njit
 
-from worker.solver.models import eom
-from worker.solver.models.bank_state_compiled import _KB, _OMEGA, _VS, aero_terms, float_arrays
+from worker.solver.models.bank_state_compiled import _VS, float_arrays
+from worker.solver.models.flown_rates import point_time_rates
 from worker.solver.polynomial import horner
 from worker.solver.problem import EntryProblem
 from worker.solver.transcription.energy_defect import IntervalIncrements
@@ -59,10 +59,7 @@ def _stage(
     """d(state)/de into ``out``: the energy-form rates, then each running cost's density."""
     r, ph, ga, ps = state[0], state[2], state[3], state[4]
     v = math.sqrt(2.0 * (1.0 / r - e))
-    rho, _rho_r, alpha, _alpha_v, cl, _dcl, cd, _dcd = aero_terms(r, v, p)
-    qk = p[_KB] * rho * v * v
-    k = eom.kinematics(r, ph, v, ga, ps, False)
-    f = eom.rates(k, r, v, qk * cl, qk * cd, u1, u2, p[_OMEGA], False, True)
+    f, rho, alpha = point_time_rates(r, ph, v, ga, ps, u1, u2, p)
     edot = -f[0] / (r * r) - v * f[3]
     inv = 1.0 / edot
     out[0], out[1], out[2] = f[0] * inv, f[1] * inv, f[2] * inv
