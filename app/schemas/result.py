@@ -141,6 +141,12 @@ class HistoryExtra(BaseModel):
     weight_trust_region: Number = Field(None, description="Trust-region weight used (1).")
     node_times_s: list[Number] | None = Field(None, description="Time of each node, s.")
     step_defect: Number = Field(None, description="Largest dynamics defect of the step (1).")
+    start: int | None = Field(
+        None, description="The start of a multi-start run the iteration belongs to (1-based)."
+    )
+    initial_bank_deg: Number = Field(
+        None, description="Constant bank of that start's initial guess, deg."
+    )
 
 
 class HistoryRecord(BaseModel):
@@ -348,6 +354,19 @@ class Provenance(_Record):
     )
 
 
+class StartSummary(_Record):
+    """One start of a multi-start run (foh-ptr: the closest constant bank of each sign)."""
+
+    start: int = Field(..., description="1-based, in the order run (1: the closest guess).")
+    initial_bank_deg: Number = Field(None, description="Constant bank of the start's guess, deg.")
+    status: str = Field(..., description="How the start's SCP ended (converged, failed, ...).")
+    iterations: int = Field(..., description="Iterations the start ran.")
+    objective_terms: dict[str, Number] = Field(
+        default_factory=dict, description="Each objective term on the start's last iterate, SI."
+    )
+    chosen: bool = Field(..., description="Whether this start's answer is the result.")
+
+
 class ResultDocument(_Record):
     """Trajectory with units, objective, verification, convergence history, timing, provenance."""
 
@@ -372,6 +391,11 @@ class ResultDocument(_Record):
     )
     history: list[HistoryRecord] = Field(
         default_factory=list, description="Every SCP iteration of the attempt, in order."
+    )
+    starts: list[StartSummary] | None = Field(
+        None,
+        description="Each start of a multi-start run and which was kept (the best converged); "
+        "absent for a single start. The history holds every start's iterations.",
     )
     timing: Timing
     provenance: Provenance = Field(default_factory=Provenance)

@@ -7,6 +7,8 @@ takes tens of seconds here).
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -55,3 +57,26 @@ def test_the_service_is_ready_only_after_the_kernels_are_compiled(tmp_path: Path
     finally:
         client.close()
         server.stop()
+
+
+def test_the_command_line_says_when_it_compiles(tmp_path: Path) -> None:
+    """``trajopt solve`` on an empty kernel cache says on stderr why it waits; on the filled
+    cache it does not."""
+    env = service_free_env()
+    env.update(TRAJOPT_DATA_DIR=str(tmp_path / "data"), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    notice = "compiling the solver's kernels"
+    runs = []
+    for _ in range(2):
+        done = subprocess.run(
+            [sys.executable, "-m", "app.cli", "solve", SCENARIO, "--quiet"],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=False,
+        )
+        assert done.returncode == 0, done.stderr
+        runs.append(done.stderr)
+    assert notice in runs[0], runs[0]
+    assert notice not in runs[1], runs[1]

@@ -5,7 +5,8 @@ Acceptance figures: terminal velocity within 0.3 % of 971.03 m/s (independent NL
 801 nodes), converged within the default cap of 30 iterations, propagated terminal residuals
 within Table 4's for 40 nodes, path limits within 1 % between nodes, the flown bank within its
 80 deg between the nodes too, an active zone entered by at most 0.05 deg; recorded with the
-commands in docs/methods/foh-ptr.md. (The bound was 15 iterations, met by trajectories whose
+commands in docs/methods/foh-ptr.md; the cap holds for each of the two starts (one per bank
+sign). (The bound was 15 iterations, met by trajectories whose
 bank turned to 180 deg between nodes held at 80 deg; within the limit case 1 takes 25.)
 """
 
@@ -51,13 +52,20 @@ def uniform() -> dict[str, Any]:
     return solve_problem(_doc(grid="uniform"))
 
 
+def _kept(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The history of the start whose answer is the result (every record without starts)."""
+    starts = result.get("starts") or []
+    chosen = next((s["start"] for s in starts if s["chosen"]), None)
+    return [h for h in result["history"] if chosen is None or h["extra"]["start"] == chosen]
+
+
 def test_converges_with_small_residuals(adaptive: dict[str, Any], uniform: dict[str, Any]) -> None:
     for result in (adaptive, uniform):
-        assert result["timing"]["iterations"] <= 30
+        assert all(s["iterations"] <= 30 for s in result["starts"]), result["starts"]
         bank = result["verification"]["control_limits"]["bank_deg"]
         assert bank["within"] and bank["max"] <= 80.0 * 1.01, bank
         assert all(h["conic_status"] == "optimal" for h in result["history"])
-        assert result["history"][-1]["virtual_control_norm"] <= 1e-6
+        assert _kept(result)[-1]["virtual_control_norm"] <= 1e-6
         err = result["verification"]["terminal_error_vs_optimized"]
         for key, bound in TABLE4_40_NODES.items():
             assert abs(err[key]) <= bound, (key, err[key])

@@ -158,16 +158,19 @@ def solve_problem(
     on_iteration: IterationCallback | None = None,
     should_stop: StopCheck | None = None,
     on_phase: PhaseCallback | None = None,
+    on_compiling: Callable[[], None] | None = None,
 ) -> dict[str, Any]:
     """Solve ``problem`` with its selected method and return the JSON-ready result document.
 
     ``on_iteration`` receives each per-iteration history record as soon as it exists;
     ``should_stop`` is polled once per SCP iteration and every fraction of a second during the
     verification (a true answer ends the solve as ``cancelled`` with the history so far);
-    ``on_phase`` hears when optimization and verification start. Solver failures (infeasible,
-    diverged, time limit, numerical trouble, failed verification) come back as a result with
-    ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only programming
-    errors raise.
+    ``on_phase`` hears when optimization and verification start; ``on_compiling`` is called
+    (from a helper thread) when the method's compiled kernels are not in numba's cache and the
+    wait before the optimization is their compilation (once after an install). Solver failures
+    (infeasible, diverged, time limit, numerical trouble, failed verification) come back as a
+    result with ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only
+    programming errors raise.
     """
     start = time.perf_counter()
     method = problem.method.name
@@ -191,7 +194,8 @@ def solve_problem(
             on_iteration(json_ready(record.as_dict()))
 
     if METHODS[method].warm_kernels and compiled_parameters(model.forces, model.omega) is not None:
-        warm_up()  # loaded (or compiled) before the clock: wall_s is the optimization's own
+        # loaded (or compiled) before the clock: wall_s is the optimization's own
+        warm_up(on_compiling)
     if on_phase is not None:
         on_phase("optimizing")
     scp_start = time.perf_counter()
@@ -204,7 +208,8 @@ def solve_problem(
         else None
     )
     history = outcome.history
-    if outcome.failure_code == "diverged":  # the diverging record is streamed, not judged
+    # the diverging record is streamed, not judged (a multi-start run keeps it in its history)
+    if outcome.failure_code == "diverged" and outcome.starts is None:
         history = history + streamed[len(history) :]
     document: dict[str, Any] = {
         "status": status,
@@ -213,6 +218,8 @@ def solve_problem(
         "history": [r.as_dict() for r in history],
         "provenance": provenance(model, problem.method),
     }
+    if outcome.starts is not None:
+        document["starts"] = outcome.starts
     verification_s = 0.0
     if outcome.trajectory is not None:
         traj = outcome.trajectory
@@ -233,7 +240,7 @@ def solve_problem(
             verification_s = time.perf_counter() - v_start
             document["verification"] = report
             document["objective"] = _objective(outcome.objective_terms, report)
-            last = outcome.history[-1] if outcome.history else None
+            last = outcome.last_record
             violations = (
                 node_violations(model, traj, last)
                 if outcome.status in ("converged", "max_iterations")

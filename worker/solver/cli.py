@@ -190,6 +190,16 @@ def scenario_table(scenarios: Sequence[Scenario]) -> list[str]:
     return lines
 
 
+def _compiling_notice() -> None:
+    """Say on stderr why the first solve after an install waits before its first iteration."""
+    print(
+        "compiling the solver's kernels: once after an install, about 20 s (python -m "
+        "worker.solver.warmup does it ahead of time)",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def _progress(record: dict[str, Any]) -> None:
     """One progress line per SCP iteration on stderr."""
     change = record["max_state_change"]
@@ -270,7 +280,9 @@ def _solve(args: argparse.Namespace) -> int:
 
     from worker.solver.api import solve_problem
 
-    result = solve_problem(doc, on_iteration=None if args.quiet else _progress)
+    result = solve_problem(
+        doc, on_iteration=None if args.quiet else _progress, on_compiling=_compiling_notice
+    )
     code = 0 if result["status"] == "succeeded" else 1
     print(_summary(result), flush=True)
     if args.output:

@@ -7,7 +7,9 @@ worker.solver.warmup`` fills numba's on-disk cache (CI, the Docker image, the fi
 
 from __future__ import annotations
 
+import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -17,22 +19,41 @@ from worker.solver.transcription import energy_defect_compiled, foh_hessian
 
 _warmed = False
 
+NOTICE_AFTER_S = 1.0
+"""Loading from numba's cache takes well under this; a warm-up still running then is compiling."""
+
 
 def is_warm() -> bool:
     """Whether this process has loaded (or compiled) the kernels already."""
     return _warmed
 
 
-def warm_up() -> float:
+def warm_up(notice: Callable[[], None] | None = None) -> float:
     """Compile every kernel (or load it from numba's on-disk cache) on a tiny case; seconds taken.
 
     The first compilation on a machine takes about 20 s; afterwards loading takes well under one.
     Worker processes call this before taking jobs, so a job's time limit never pays for it; once
-    the kernels are loaded in this process it returns at once.
+    the kernels are loaded in this process it returns at once. ``notice`` is called (from a
+    helper thread) if the warm-up is still running after ``NOTICE_AFTER_S``: it is compiling, and
+    a caller can say why it waits.
     """
-    global _warmed
     if _warmed:
         return 0.0
+    timer = None
+    if notice is not None:
+        timer = threading.Timer(NOTICE_AFTER_S, notice)
+        timer.daemon = True
+        timer.start()
+    try:
+        return _load_kernels()
+    finally:
+        if timer is not None:
+            timer.cancel()
+
+
+def _load_kernels() -> float:
+    """Run each kernel-owning module's warm-up once; seconds taken."""
+    global _warmed
     start = time.perf_counter()
     head = [6.378e6, 7.9e3, 1.2e4, 1.225, 7.2e3, 0.06, 1.0, 40.0, 4.57e3, 1.8e-6, 1.0, 2.0, 2.0]
     params = np.array([*head, 0.0, 0.02, 0.08, 0.9])  # CL and CD(CL), two coefficients each

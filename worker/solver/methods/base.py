@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Generic, Protocol, TypedDict, TypeVar
 
 from app.schemas import FieldIssue, ProblemDocument
@@ -61,6 +61,17 @@ class MethodResult:
     failure_code: str | None = None
     failure_message: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    starts: list[dict[str, Any]] | None = None
+    """One summary per start of a multi-start run (``run_starts``); None for a single start."""
+    final_record: IterationRecord | None = None
+    """The kept start's last iteration when the history holds several starts."""
+
+    @property
+    def last_record(self) -> IterationRecord | None:
+        """The last iteration of the run whose trajectory is the result."""
+        if self.final_record is not None:
+            return self.final_record
+        return self.history[-1] if self.history else None
 
 
 class RunHooks(TypedDict, total=False):
@@ -87,11 +98,16 @@ class DrivenMethod(ScpMethod[Ref, Any], Protocol):
 
 
 def run_method(
-    build: Callable[[], DrivenMethod[Ref]], options: ScpRunOptions, hooks: RunHooks
+    build: Callable[[], DrivenMethod[Ref]],
+    options: ScpRunOptions,
+    hooks: RunHooks,
+    *,
+    clock_start: float | None = None,
 ) -> MethodResult:
     """Build a method (its set-up counts against the time limit) and run it on the shared driver
-    with the budgets and conic backend of its options."""
-    start = time.perf_counter()
+    with the budgets and conic backend of its options; ``clock_start``: when the time limit's
+    clock started (default: now)."""
+    start = time.perf_counter() if clock_start is None else clock_start
     method = build()
     backend = hooks.get("backend") or make_backend(
         options.conic_backend, fallback=options.fallback_solver
@@ -115,6 +131,79 @@ def run_method(
         failure_code=outcome.failure_code,
         failure_message=outcome.failure_message,
         extra=dict(method.extra),
+    )
+
+
+def run_starts(
+    builds: Sequence[Callable[[], DrivenMethod[Ref]]],
+    options: ScpRunOptions,
+    hooks: RunHooks,
+    cost: Callable[[MethodResult], float],
+    labels: Sequence[dict[str, Any]],
+) -> MethodResult:
+    """Run the same method from several starts, one after the other, and keep the best answer.
+
+    A converged start beats one that is not, and among the converged the lowest ``cost`` wins;
+    when none converged the first start's outcome is the result (its failure is the one
+    reported). The time limit covers all starts and ``max_iterations`` applies to each; the
+    history holds every start's iterations numbered on from one start to the next, each record
+    tagged with its start (``extra.start``, 1-based) and that start's ``labels`` entry. A start
+    that is cancelled or runs out of time ends the run.
+    """
+    clock = time.perf_counter()
+    sink = hooks.get("on_iteration")
+    results: list[MethodResult] = []
+    offset = 0
+    for index, build in enumerate(builds):
+        tag = {"start": index + 1, **labels[index]}
+
+        def tagged(
+            record: IterationRecord, shift: int = offset, tag: dict[str, Any] = tag
+        ) -> IterationRecord:
+            return replace(
+                record, iteration=record.iteration + shift, extra={**record.extra, **tag}
+            )
+
+        seen: list[IterationRecord] = []
+
+        def forward(
+            record: IterationRecord,
+            mark: Callable[..., IterationRecord] = tagged,
+            streamed: list[IterationRecord] = seen,
+        ) -> None:
+            streamed.append(mark(record))
+            if sink is not None:
+                sink(streamed[-1])
+
+        run_hooks: RunHooks = {**hooks, "on_iteration": forward}
+        result = run_method(build, options, run_hooks, clock_start=clock)
+        # a diverging iteration is streamed but not in the history: keep it with its start
+        diverged = result.failure_code == "diverged"
+        result.history = seen if diverged else [tagged(record) for record in result.history]
+        results.append(result)
+        offset += len(result.history)
+        if result.status in ("cancelled", "timed_out"):
+            break
+    converged = [r for r in results if r.status == "converged"]
+    chosen = min(converged, key=cost) if converged else results[0]
+    history = [record for r in results for record in r.history]
+    summaries = [
+        {
+            **labels[i],
+            "start": i + 1,
+            "status": r.status,
+            "iterations": len(r.history),
+            "objective_terms": r.objective_terms,
+            "chosen": r is chosen,
+        }
+        for i, r in enumerate(results)
+    ]
+    return replace(
+        chosen,
+        history=history,
+        conic_solve_s=sum(r.conic_solve_s for r in results),
+        starts=summaries,
+        final_record=chosen.history[-1] if chosen.history else None,
     )
 
 

@@ -106,6 +106,32 @@ def _miss(problem: EntryProblem, end: Array) -> Array:
     return np.where(np.isfinite(score), score, np.inf)
 
 
+def sign_start_banks(problem: EntryProblem, nodes: int) -> list[float]:
+    """The constant banks (deg) of a two-start run: the sweep's closest to the terminal
+    conditions, then the closest of the other sign; one entry when the other sign has no
+    propagation that stays above the ground (or the bank is fixed or limited to zero).
+
+    The bank's sign in the thin early arc, where it turns the path but barely the energy,
+    selects between local optima of the same problem (paper 002 case 1 at 120 nodes: 969.8 m/s
+    from +20 deg, 970.6 m/s from -10 deg); one start per sign lets the better one be kept.
+    """
+    assert problem.final_time is not None
+    limit = math.degrees(problem.bank_max)
+    candidates = SWEEP_DEG[np.abs(SWEEP_DEG) <= limit]
+    z = propagate_constant_bank(
+        problem, np.radians(candidates), uniform_intervals(problem.final_time, nodes)
+    )
+    score = _miss(problem, z[:, -1])
+    best = int(np.argmin(score))
+    if not np.isfinite(score[best]) or candidates[best] == 0.0:
+        return [float(candidates[best])]
+    other = np.where(np.sign(candidates) == -np.sign(candidates[best]), score, np.inf)
+    second = int(np.argmin(other))
+    if not np.isfinite(other[second]):
+        return [float(candidates[best])]
+    return [float(candidates[best]), float(candidates[second])]
+
+
 def initial_reference(
     problem: EntryProblem, nodes: int, initial_bank_deg: float | None
 ) -> Reference:

@@ -19,4 +19,5 @@ METHOD = MethodInfo(
     options_type=EnergyScpOptions,
     check=check_support,
     run=Runner("worker.solver.methods.energy_scp.method", EnergyScpOptions),
+    warm_kernels=True,  # the compiled deferred correction and the verification's rates
 )

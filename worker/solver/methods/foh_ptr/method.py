@@ -13,6 +13,7 @@ stop tolerance, the objective has settled and the trust weight is not above its 
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from concurrent.futures import Future
@@ -24,7 +25,7 @@ import numpy as np
 from app.schemas.methods import FohPtrOptions
 from worker.solver import side_thread
 from worker.solver.conic import ConeProblem, ConicSolution
-from worker.solver.methods.base import MethodResult, RunHooks, run_method
+from worker.solver.methods.base import MethodResult, RunHooks, run_method, run_starts
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
 from worker.solver.methods.foh_ptr.support import grid_factor, interval_bounds
@@ -36,7 +37,11 @@ from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.foh_data import GridLimits, SubproblemData
 from worker.solver.transcription.foh_subproblem import FohSubproblem
 from worker.solver.transcription.terminal import terminal_rows
-from worker.solver.transcription.time_grid import InitialGuessError, initial_reference
+from worker.solver.transcription.time_grid import (
+    InitialGuessError,
+    initial_reference,
+    sign_start_banks,
+)
 from worker.solver.warmup import warm_up
 
 Array = np.ndarray
@@ -81,10 +86,13 @@ class _Pending:
 class FohPtr:
     """Paper 002's method on the driver: linearize, build, propose, judge (``scp.loop``)."""
 
-    def __init__(self, problem: EntryProblem, options: FohPtrOptions) -> None:
+    def __init__(
+        self, problem: EntryProblem, options: FohPtrOptions, start_bank_deg: float | None = None
+    ) -> None:
         if problem.final_time is None:
             raise ValueError("foh-ptr needs a fixed final time")
         self.problem, self.options = problem, options
+        self.start_bank_deg = options.initial_bank_deg if start_bank_deg is None else start_bank_deg
         layout = Linearizer.layout
         sc = problem.scales
         self.scale = layout.trust_units(sc)
@@ -153,7 +161,7 @@ class FohPtr:
     def start(self) -> FohIterate:
         """The constant-bank initial reference that best meets the terminal conditions."""
         try:
-            ref = initial_reference(self.problem, self.options.nodes, self.options.initial_bank_deg)
+            ref = initial_reference(self.problem, self.options.nodes, self.start_bank_deg)
         except InitialGuessError as exc:  # the method cannot start: a failed job, not an error
             raise scp.StartError("initial_guess", str(exc)) from exc
         self.extra["initial_bank_deg"] = ref.bank_deg
@@ -298,4 +306,29 @@ def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]
     """Run paper 002's SCP on ``problem`` (fixed final time) with its ``options``."""
     if compiled_parameters(problem.forces, problem.omega) is not None:
         warm_up()  # compile or load the kernels before the clock starts (at once when loaded)
-    return run_method(lambda: FohPtr(problem, options), options, hooks)
+    free_bank = options.initial_bank_deg is None and problem.initial_bank_deg is None
+    banks = (
+        sign_start_banks(problem, options.nodes) if free_bank and options.bank_sign_starts else []
+    )
+    if len(banks) < 2:
+        return run_method(lambda: FohPtr(problem, options), options, hooks)
+    made: list[FohPtr] = []
+
+    def build(bank: float) -> FohPtr:
+        made.append(FohPtr(problem, options, bank))
+        return made[-1]
+
+    def cost(result: MethodResult) -> float:
+        """The result's objective, normalized as the first start normalizes it (a heat-load
+        unit comes from the guess, so each start's own would not compare)."""
+        objective = next((m.lin.objective for m in made if m.lin.objective is not None), None)
+        assert objective is not None  # a converged start has linearized
+        return objective.normalized(result.objective_terms)
+
+    return run_starts(
+        [functools.partial(build, bank) for bank in banks],
+        options,
+        hooks,
+        cost,
+        [{"initial_bank_deg": bank} for bank in banks],
+    )
