@@ -21,8 +21,10 @@ from worker.notify import CHANNEL_PREFIX
 
 log = logging.getLogger(__name__)
 
-NoticeFn = Callable[[str | None], None]
-"""Called on the event loop with the id of a job that may have changed (``None``: any job)."""
+NoticeFn = Callable[[str | None, bool], None]
+"""Called on the event loop with the id of a job that may have changed (``None``: any job) and
+whether the notice says the job's attempt ended (its ``end`` is read at once, see
+:mod:`app.stream_hub`)."""
 
 IDLE_REREAD_S = 1.0
 """With live Redis notices, every watched job is still read again this often (a lost notice
@@ -70,14 +72,15 @@ class PollingWaker:
             self._sink = (asyncio.get_running_loop(), on_notice)
 
     def notify(self, job_id: str) -> None:
-        """Tell the watcher that ``job_id`` changed (thread-safe; a no-op before ``start``)."""
+        """Tell the watcher that ``job_id`` ended (thread-safe; a no-op before ``start``): the
+        local pool calls this when a job is done."""
         with self._lock:
             sink = self._sink
         if sink is None:
             return
         loop, on_notice = sink
         with contextlib.suppress(RuntimeError):  # the loop closed at shutdown
-            loop.call_soon_threadsafe(on_notice, job_id)
+            loop.call_soon_threadsafe(on_notice, job_id, True)
 
     async def close(self) -> None:
         """Stop delivering notices."""
@@ -119,7 +122,7 @@ class RedisWaker:
                 self._listening = True
                 if failures:
                     log.info("Redis notices for event streams are back")
-                    on_notice(None)  # notices may have been lost meanwhile
+                    on_notice(None, False)  # notices may have been lost meanwhile
                 failures = 0
                 while True:
                     message = await pubsub.get_message(timeout=IDLE_REREAD_S)
@@ -127,7 +130,8 @@ class RedisWaker:
                         channel = message["channel"]
                         if isinstance(channel, bytes):
                             channel = channel.decode("utf-8", "replace")
-                        on_notice(str(channel).removeprefix(CHANNEL_PREFIX))
+                        ended = message.get("data") in (b"end", "end")
+                        on_notice(str(channel).removeprefix(CHANNEL_PREFIX), ended)
             except asyncio.CancelledError:
                 raise
             except Exception as exc:

@@ -3,9 +3,12 @@
 Streams cost no database reads of their own. One watcher task per process reads every watched
 job's row in one query when a notice says it changed (or once per poll interval), turns it into
 a :class:`JobFrame` (each iteration's event data encoded once) and wakes every stream of that job;
-each stream only keeps its own cursor (iterations sent, attempt, phase). Reads are at least
-``min_read_gap_s`` apart, so a process makes a bounded number of queries per second however many
-streams and jobs it serves.
+each stream only keeps its own cursor (iterations sent, attempt, phase). Reads are paced by a
+bucket of ``READ_BURST`` reads refilled one per ``min_read_gap_s``: at most ``READ_BURST`` +
+t / ``min_read_gap_s`` reads in any t seconds, so a process makes a bounded number of queries per
+second however many streams and jobs it serves. A notice that a job's attempt ended is read at
+once whatever the bucket holds (one per attempt, so the bound grows by the attempts that end):
+the last iterations of a job drain the bucket, and its ``end`` would otherwise wait a gap.
 
 The caps are per process: ``max_streams`` in all and ``max_streams_per_client`` per client. A
 stream over either cap is refused with 429 ``too_many_streams`` before it opens.
@@ -34,6 +37,9 @@ from app.storage.models import TERMINAL_STATUSES, Job
 from app.storage.session import Database
 
 log = logging.getLogger(__name__)
+
+READ_BURST = 3.0
+"""Reads the watcher may make back to back before the minimum gap paces it (see the module)."""
 
 STREAM_RETRY_AFTER_S = 5
 """Retry-After of a refused stream: streams last as long as jobs run, so a few seconds."""
@@ -232,10 +238,13 @@ class StreamHub:
         self._database = database
         self._waker = waker
         self._min_gap = min_read_gap_s
+        self._tokens = READ_BURST
+        self._refilled = time.monotonic()
         self._watches: dict[str, _Watch] = {}
         self._dirty: set[str] = set()
         self._all_dirty = False
         self._wake = asyncio.Event()
+        self._ended = asyncio.Event()
         self._task: asyncio.Task[None] | None = None
         self._failing = False
 
@@ -285,11 +294,13 @@ class StreamHub:
             del self._watches[watch.job_id]
             self._dirty.discard(watch.job_id)
 
-    def _on_notice(self, job_id: str | None) -> None:
+    def _on_notice(self, job_id: str | None, ended: bool = False) -> None:
         if job_id is None:
             self._all_dirty = True
         elif job_id in self._watches:
             self._dirty.add(job_id)
+            if ended:
+                self._ended.set()
         else:
             return  # another process's stream, or none at all
         self._wake.set()
@@ -310,6 +321,7 @@ class StreamHub:
                     self._wake.wait(), max(0.0, interval - (time.monotonic() - last_full))
                 )
             self._wake.clear()
+            self._ended.clear()
             started = time.monotonic()
             if self._all_dirty or started - last_full >= interval:
                 due: Iterable[str] = list(self._watches)
@@ -320,7 +332,16 @@ class StreamHub:
             self._all_dirty = False
             if due:
                 await self._refresh(due)
-            await asyncio.sleep(max(0.0, self._min_gap - (time.monotonic() - started)))
+                with contextlib.suppress(TimeoutError):  # paced, unless an attempt ends
+                    await asyncio.wait_for(self._ended.wait(), self._pace())
+
+    def _pace(self) -> float:
+        """Spend one read from the bucket; seconds to wait before the next read may start."""
+        now = time.monotonic()
+        refill = (now - self._refilled) / self._min_gap if self._min_gap > 0 else READ_BURST
+        self._tokens = min(READ_BURST, self._tokens + refill) - 1.0
+        self._refilled = now
+        return max(0.0, -self._tokens * self._min_gap)
 
     async def _refresh(self, due: Iterable[str]) -> None:
         known = {job_id: self._watches[job_id].head for job_id in due if job_id in self._watches}

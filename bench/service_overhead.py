@@ -90,6 +90,8 @@ def _stack(args: argparse.Namespace, workers: int, logs: Path) -> Iterator[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("TRAJOPT_")}
     for name in ("DATABASE_URL", "REDIS_URL", "CELERY_BROKER_URL"):
         env.pop(name, None)
+    # one client submits every job: the per-client rate limits would cut the run short (429)
+    env.update(TRAJOPT_RATE_SUBMIT_PER_WINDOW="0", TRAJOPT_RATE_READ_PER_WINDOW="0")
     processes: list[_Process] = []
     schema = None
     if args.embedded:
@@ -162,13 +164,18 @@ def _solve_time(result: dict[str, Any]) -> float:
 def measure_overhead(base_url: str, args: argparse.Namespace) -> dict[str, Any]:
     """Sequential jobs, each submitted once the previous result was fetched."""
     overheads, solves, waits = [], [], []
+    phases: dict[str, list[float]] = {name: [] for name in PHASES}
     with httpx.Client(base_url=base_url, timeout=60) as client:
         for index in range(args.warmup + args.jobs):
             start = time.perf_counter()
+            wall_start = time.time()
             job = client.post("/v1/jobs", json=_body(args)).json()
+            submitted = time.time()
             _wait_end(client, job["id"])
+            ended = time.time()
             result = client.get(f"/v1/jobs/{job['id']}/result")
             elapsed = time.perf_counter() - start
+            fetched = time.time()
             if result.status_code != 200:
                 raise RuntimeError(f"job {job['id']}: no result: {result.text}")
             if index < args.warmup:
@@ -178,8 +185,17 @@ def measure_overhead(base_url: str, args: argparse.Namespace) -> dict[str, Any]:
             solves.append(solve)
             view = client.get(f"/v1/jobs/{job['id']}").json()
             waits.append(_seconds_between(view["created_at"], view["started_at"]))
+            started, finished = _epoch(view["started_at"]), _epoch(view["finished_at"])
+            phases["submit (POST answered)"].append(submitted - wall_start)
+            phases["answered -> attempt started"].append(started - submitted)
+            phases["attempt: started -> finished, less the solve"].append(
+                finished - started - solve
+            )
+            phases["finished -> end event received"].append(ended - finished)
+            phases["end event -> result fetched"].append(fetched - ended)
     quantiles = statistics.quantiles(overheads, n=20, method="inclusive")
     return {
+        "phases_p50_ms": {k: 1e3 * statistics.median(v) for k, v in phases.items()},
         "jobs": len(overheads),
         "overhead_p50_ms": 1e3 * statistics.median(overheads),
         "overhead_p95_ms": 1e3 * quantiles[18],
@@ -187,6 +203,22 @@ def measure_overhead(base_url: str, args: argparse.Namespace) -> dict[str, Any]:
         "queue_wait_p50_ms": 1e3 * statistics.median(waits),
         "solve_p50_s": statistics.median(solves),
     }
+
+
+PHASES = (
+    "submit (POST answered)",
+    "answered -> attempt started",
+    "attempt: started -> finished, less the solve",
+    "finished -> end event received",
+    "end event -> result fetched",
+)
+"""Where a job's overhead goes (client clock against the server's timestamps: one machine)."""
+
+
+def _epoch(stamp: str) -> float:
+    from datetime import datetime
+
+    return datetime.fromisoformat(stamp).timestamp()
 
 
 def _seconds_between(first: str, second: str) -> float:
@@ -257,6 +289,8 @@ def main(argv: list[str] | None = None) -> int:
         f"max {overhead['overhead_max_ms']:.1f} ms; queue wait p50 "
         f"{overhead['queue_wait_p50_ms']:.1f} ms; solve p50 {overhead['solve_p50_s']:.3f} s"
     )
+    for name, value in overhead["phases_p50_ms"].items():
+        print(f"  {name}: p50 {value:.1f} ms")
     for row in report["throughput"]:
         print(
             f"throughput, {row['workers']} worker process(es): {row['jobs_per_s']:.2f} jobs/s "

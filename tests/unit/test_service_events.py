@@ -28,7 +28,8 @@ def test_polling_waker_delivers_a_notice_from_another_thread_on_the_loop() -> No
         loop = asyncio.get_running_loop()
         arrived = asyncio.Event()
 
-        def on_notice(job_id: str | None) -> None:
+        def on_notice(job_id: str | None, ended: bool) -> None:
+            assert ended  # the local pool's notice: the job is done
             got.append(job_id)
             on_loop.append(asyncio.get_running_loop() is loop)
             arrived.set()

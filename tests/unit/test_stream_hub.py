@@ -207,6 +207,42 @@ def test_a_notice_wakes_the_streams_long_before_the_poll(database: Database) -> 
     assert asyncio.run(run()) < 1.0
 
 
+def test_an_ended_attempt_is_read_at_once_after_a_burst_of_iterations(
+    database: Database,
+) -> None:
+    """Iteration notices drain the read bucket (3 back to back, then one per gap); the notice
+    that the attempt ended is read at once, not a gap later. A 2 s gap makes the difference
+    plain: paced, the end would wait about 2 s; 1 s absorbs a busy machine."""
+    job_id = add_running_job(database)
+
+    async def run() -> tuple[float, int]:
+        waker = PollingWaker(interval_s=30.0)
+        hub = StreamHub(
+            database, waker, max_streams=10, max_streams_per_client=10, min_read_gap_s=2.0
+        )
+        events: list[Event] = []
+        task = asyncio.create_task(
+            collect(hub.events(job_id, slot=hub.admit(OWNER), end_payload=end_payload), events)
+        )
+        await asyncio.sleep(0.1)
+        for n in range(1, 4):  # each iteration notice spends a read
+            change(database, job_id, history=[{"iteration": i} for i in range(1, n + 1)])
+            hub._on_notice(job_id)
+            await asyncio.sleep(0.05)
+        change(database, job_id, status="failed")
+        start = time.perf_counter()
+        hub._on_notice(job_id, True)
+        await asyncio.wait_for(task, 10)
+        elapsed = time.perf_counter() - start
+        await hub.close()
+        assert events[-1].event == "end"
+        return elapsed, hub.reads
+
+    elapsed, reads = asyncio.run(run())
+    assert elapsed < 1.0, elapsed
+    assert reads >= 4  # the first read and the three iterations' reads did happen
+
+
 def count_queries(database: Database, streams: int, seconds: float) -> tuple[int, int]:
     """SQL statements and hub reads in ``seconds`` while ``streams`` streams watch one idle
     running job (polling every 50 ms, the embedded default: the worst case)."""
