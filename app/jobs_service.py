@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import logging
+from collections.abc import Callable
 from datetime import datetime
 from typing import Any
 
@@ -11,7 +13,7 @@ from sqlalchemy.exc import IntegrityError
 
 from app.caps import check_server_caps
 from app.dispatch import Dispatcher
-from app.dispatch.fair import fair_priority
+from app.dispatch.fair import LEVELS as FAIR_LEVELS
 from app.errors import ApiError, not_found
 from app.ratelimit import Quota, Submitter
 from app.settings import Settings
@@ -119,8 +121,13 @@ def submit_job(
     owner: str,
     body: Any,
     idempotency_key: str | None,
+    defer: Callable[[Callable[[], None]], None] | None = None,
 ) -> tuple[JobView, bool]:
     """Validate, store and dispatch a job; returns its view and whether it was a replay.
+
+    ``defer`` (the route's background tasks) takes the closing of the job's outbox entry, which
+    the answer need not wait for (if it never runs, the relay sends the job again and the
+    duplicate does nothing); without it that write is made before returning.
 
     ``owner`` is the client's name; when it is a :class:`Submitter` (as the route gives it),
     a replay costs one read, a new submission needs room in the submit window (429 before
@@ -145,7 +152,7 @@ def submit_job(
     if refusal is not None:  # the cheap answer: no validation, no unit used
         raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
     try:
-        return _submit(database, dispatcher, settings, owner, body, key, fingerprint, quota)
+        return _submit(database, dispatcher, settings, owner, body, key, fingerprint, quota, defer)
     except ApiError as exc:
         if quota is not None and 400 <= exc.status < 500:
             quota.note_rejected()
@@ -161,6 +168,7 @@ def _submit(
     key: str | None,
     fingerprint: str | None,
     quota: Quota | None,
+    defer: Callable[[Callable[[], None]], None] | None = None,
 ) -> tuple[JobView, bool]:
     """:func:`submit_job` for a request that is no replay; every refusal is an ApiError."""
     submission = resolve_submission(body)
@@ -196,6 +204,10 @@ def _submit(
             if refusal is not None:  # lost the race for the last units of the window
                 raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
             job = repository.create_job(session, new)
+            # under the client's submission lock every other active job of the client is
+            # older: the new job's fair-share rank is their count (dispatch_rank, without
+            # a second transaction)
+            priority = min(active, FAIR_LEVELS - 1)
     except IntegrityError:
         if not (key and fingerprint):
             raise
@@ -207,7 +219,7 @@ def _submit(
 
     try:
         limits = job_time_limits(submission.document, settings)
-        dispatcher.submit(job.id, limits, fair_priority(database, job.id))
+        dispatcher.submit(job.id, limits, priority)
     except Exception as exc:
         log.warning(
             "job %s of client %s could not be queued: %s: %s",
@@ -227,7 +239,10 @@ def _submit(
             ) from exc
         log.info("job %s was picked up despite the error; accepted", job.id)
     else:
-        _mark_sent(database, job.id)
+        if defer is not None:
+            defer(functools.partial(_mark_sent, database, job.id))
+        else:
+            _mark_sent(database, job.id)
     log.info("job %s accepted for client %s (%s)", job.id, owner, job.method)
     return job_view(job, settings), False
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Header, Query, Response
+from fastapi import APIRouter, BackgroundTasks, Header, Query, Response
 
 from app import jobs_service
 from app.body import ProblemBody, problem_request_body
@@ -41,6 +41,7 @@ _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorResponse}}
 def submit_job(
     body: ProblemBody,
     response: Response,
+    background: BackgroundTasks,
     database: DatabaseDep,
     dispatcher: DispatcherDep,
     settings: SettingsDep,
@@ -61,6 +62,7 @@ def submit_job(
         owner=owner,
         body=body,
         idempotency_key=idempotency_key,
+        defer=background.add_task,
     )
     response.headers["Location"] = view.links.self
     if replayed:
