@@ -76,9 +76,9 @@ def test_scenario_job_streams_to_completion_and_is_stored(
 def test_time_domain_scp_runs_in_a_forked_worker(client: ServiceClient) -> None:
     """Paper 002's case 1 through the Celery worker: its pool process is forked from a parent
     that loaded the compiled kernels, and the curvature runs on the child's own helper thread
-    (created after the fork). Same result as in the solver core's own tests: 968.5 m/s
+    (created after the fork). Same result as in the solver core's own tests: 970.3 m/s
     (within 0.3 % of the 971.03 m/s reference), each of its two starts (one per bank sign)
-    within the default cap of 30 iterations (25 and 18), curvature used after each start's
+    within the default cap of 30 iterations (18 and 14), curvature used after each start's
     first iteration, the flown bank within its limit between the nodes."""
     job = client.submit({"scenario": "rlv-max-terminal-velocity"})
     final = client.wait_finished(job["id"], timeout=120)

@@ -7,7 +7,8 @@ within Table 4's for 40 nodes, path limits within 1 % between nodes, the flown b
 80 deg between the nodes too, an active zone entered by at most 0.05 deg; recorded with the
 commands in docs/methods/foh-ptr.md; the cap holds for each of the two starts (one per bank
 sign). (The bound was 15 iterations, met by trajectories whose
-bank turned to 180 deg between nodes held at 80 deg; within the limit case 1 takes 25.)
+bank turned to 180 deg between nodes held at 80 deg; within the limit case 1 takes 18 and 14 in
+its two starts.)
 """
 
 from __future__ import annotations
