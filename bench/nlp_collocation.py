@@ -25,14 +25,7 @@ from typing import Any
 
 import numpy as np
 
-STATE_NAMES = (
-    "altitude_m",
-    "longitude_deg",
-    "latitude_deg",
-    "velocity_m_s",
-    "flight_path_angle_deg",
-    "heading_deg",
-)
+from worker.solver.trajectory import TIME_STATE_NAMES as STATE_NAMES
 
 
 @dataclass
