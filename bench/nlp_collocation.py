@@ -245,6 +245,8 @@ class EntryNlp:
             e_f = float(energy["final"])  # e = 1/r - V^2/2 (paper 000 eq. 7)
             opti.subject_to(1.0 / X[0, n] - 0.5 * X[3, n] ** 2 == e_f)
         objective = doc["objective"]
+        if isinstance(objective, dict):  # {"terms": [...]}: the contract's long form
+            objective = objective["terms"]
         name = objective if isinstance(objective, str) else objective[0]["name"]
         if name == "max_terminal_velocity":
             opti.minimize(-X[3, n])
