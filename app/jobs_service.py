@@ -13,7 +13,7 @@ from sqlalchemy.exc import IntegrityError
 
 from app.caps import check_server_caps
 from app.dispatch import Dispatcher
-from app.dispatch.fair import LEVELS as FAIR_LEVELS
+from app.dispatch.fair import priority_of_rank
 from app.errors import ApiError, not_found
 from app.ratelimit import Quota, Submitter
 from app.settings import Settings
@@ -207,7 +207,7 @@ def _submit(
             # under the client's submission lock every other active job of the client is
             # older: the new job's fair-share rank is their count (dispatch_rank, without
             # a second transaction)
-            priority = min(active, FAIR_LEVELS - 1)
+            priority = priority_of_rank(active)
     except IntegrityError:
         if not (key and fingerprint):
             raise

@@ -139,7 +139,7 @@ class EntryNlp:
         )
         return ca.vertcat(dr, dtheta, dphi, dv, dgam, dpsi)
 
-    def _path(self, x: Any, bank: Any) -> dict[str, Any]:
+    def _path(self, x: Any) -> dict[str, Any]:
         """Heat rate (W/m^2), dynamic pressure (Pa), load factor (g)."""
         ca = self.ca
         lift, drag, rho, v_si = self._forces(x[0], x[3])
@@ -167,10 +167,10 @@ class EntryNlp:
         tf = float(final["value_s"]) / self.t_unit if fixed_tf else opti.variable()
         h = tf / n
 
-        def f(x: Any, u: Any) -> tuple[Any, Any]:
-            bank = x[6] if rate_state else u
-            rates = self._rates(x, bank)
-            return (ca.vertcat(rates, u) if rate_state else rates), bank
+        def f(x: Any, u: Any) -> Any:
+            """The collocated rates: the point-mass rates and, with a rate limit, the bank's."""
+            rates = self._rates(x, x[6] if rate_state else u)
+            return ca.vertcat(rates, u) if rate_state else rates
 
         heat_terms = []
         path = doc.get("path_constraints", {})
@@ -180,31 +180,28 @@ class EntryNlp:
             "load_factor": (path.get("load_factor") or {}).get("max_g"),
         }
         zones = doc.get("no_fly_zones") or []
-        fk, bank_k = f(X[:, 0], U[0])
+        node_path = [self._path(X[:, k]) for k in range(n + 1)]
+        rates = [f(X[:, k], U[k]) for k in range(n + 1)]
+        mid_path = []
         for k in range(n):
-            fk1, bank_k1 = f(X[:, k + 1], U[k + 1])
-            fm, bank_m = f(Xm[:, k], Um[k])
+            fk, fk1, fm = rates[k], rates[k + 1], f(Xm[:, k], Um[k])
             opti.subject_to(Xm[:, k] == 0.5 * (X[:, k] + X[:, k + 1]) + h / 8.0 * (fk - fk1))
             opti.subject_to(X[:, k + 1] - X[:, k] == h / 6.0 * (fk + 4.0 * fm + fk1))
-            values = [self._path(X[:, k], bank_k), self._path(Xm[:, k], bank_m)]
-            for point in values:
-                for name, cap in caps.items():
-                    if cap is not None:
-                        opti.subject_to(point[name] / float(cap) <= 1.0)
+            mid = self._path(Xm[:, k])
             heat_terms.append(
                 h
                 / 6.0
                 * (
-                    values[0]["heat_rate"]
-                    + 4.0 * values[1]["heat_rate"]
-                    + self._path(X[:, k + 1], bank_k1)["heat_rate"]
+                    node_path[k]["heat_rate"]
+                    + 4.0 * mid["heat_rate"]
+                    + node_path[k + 1]["heat_rate"]
                 )
             )
-            fk, bank_k = fk1, bank_k1
-        last = self._path(X[:, n], U[n])
-        for name, cap in caps.items():
-            if cap is not None:
-                opti.subject_to(last[name] / float(cap) <= 1.0)
+            mid_path.append(mid)
+        for point in node_path + mid_path:  # the limits at the nodes and at the midpoints
+            for name, cap in caps.items():
+                if cap is not None:
+                    opti.subject_to(point[name] / float(cap) <= 1.0)
         for zone in zones:
             lat_c = math.radians(float(zone["center_latitude_deg"]))
             lon_c = math.radians(float(zone["center_longitude_deg"]))

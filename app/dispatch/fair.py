@@ -15,8 +15,13 @@ from app.storage.session import Database
 from worker.celery_app import PRIORITY_LEVELS as LEVELS
 
 
+def priority_of_rank(rank: int) -> int:
+    """The dispatch priority of a job with ``rank`` of its client's jobs ahead of it."""
+    return min(rank, LEVELS - 1)
+
+
 def fair_priority(database: Database, job_id: str) -> int:
     """The dispatch priority of ``job_id``: its client's jobs ahead of it, at most LEVELS − 1."""
     with database.reader() as session:
         rank = repository.dispatch_rank(session, job_id)
-    return min(rank, LEVELS - 1)
+    return priority_of_rank(rank)

@@ -177,9 +177,9 @@ def run_starts(
 
         run_hooks: RunHooks = {**hooks, "on_iteration": forward}
         result = run_method(build, options, run_hooks, clock_start=clock)
-        # a diverging iteration is streamed but not in the history: keep it with its start
-        diverged = result.failure_code == "diverged"
-        result.history = seen if diverged else [tagged(record) for record in result.history]
+        # the driver streams every record of its history, in order, and a diverging one that
+        # it does not keep: the streamed records are the history, that one kept with its start
+        result.history = seen
         results.append(result)
         offset += len(result.history)
         if result.status in ("cancelled", "timed_out"):

@@ -106,22 +106,33 @@ def _miss(problem: EntryProblem, end: Array) -> Array:
     return np.where(np.isfinite(score), score, np.inf)
 
 
+def _sweep(problem: EntryProblem, candidates: Array, s: Array) -> tuple[Array, Array]:
+    """Nodes (C, K, 7) of the constant-bank propagations of ``candidates`` (deg) on intervals
+    ``s`` and each end's miss of the terminal targets (inf when it reached the ground)."""
+    z = propagate_constant_bank(problem, np.radians(candidates), s)
+    return z, _miss(problem, z[:, -1])
+
+
+def _sweep_candidates(problem: EntryProblem) -> Array:
+    """The sweep's constant banks within the bank limit, deg."""
+    limit = math.degrees(problem.bank_max)
+    candidates: Array = SWEEP_DEG[np.abs(SWEEP_DEG) <= limit]
+    return candidates
+
+
 def sign_start_banks(problem: EntryProblem, nodes: int) -> list[float]:
     """The constant banks (deg) of a two-start run: the sweep's closest to the terminal
     conditions, then the closest of the other sign; one entry when the other sign has no
-    propagation that stays above the ground (or the bank is fixed or limited to zero).
+    propagation that stays above the ground (or the closest bank is zero). The caller decides
+    whether the bank is free (no given or fixed initial bank).
 
     The bank's sign in the thin early arc, where it turns the path but barely the energy,
     selects between local optima of the same problem (paper 002 case 1 at 120 nodes: 969.8 m/s
-    from +20 deg, 970.6 m/s from -10 deg); one start per sign lets the better one be kept.
+    from +20 deg, 970.8 m/s from -10 deg); one start per sign lets the better one be kept.
     """
     assert problem.final_time is not None
-    limit = math.degrees(problem.bank_max)
-    candidates = SWEEP_DEG[np.abs(SWEEP_DEG) <= limit]
-    z = propagate_constant_bank(
-        problem, np.radians(candidates), uniform_intervals(problem.final_time, nodes)
-    )
-    score = _miss(problem, z[:, -1])
+    candidates = _sweep_candidates(problem)
+    _, score = _sweep(problem, candidates, uniform_intervals(problem.final_time, nodes))
     best = int(np.argmin(score))
     if not np.isfinite(score[best]) or candidates[best] == 0.0:
         return [float(candidates[best])]
@@ -144,10 +155,8 @@ def initial_reference(
     elif fixed_bank is not None:
         candidates = np.array([fixed_bank])
     else:
-        limit = math.degrees(problem.bank_max)
-        candidates = SWEEP_DEG[np.abs(SWEEP_DEG) <= limit]
-    z = propagate_constant_bank(problem, np.radians(candidates), s)
-    score = _miss(problem, z[:, -1])
+        candidates = _sweep_candidates(problem)
+    z, score = _sweep(problem, candidates, s)
     best = int(np.argmin(score))
     if not np.isfinite(score[best]):
         if candidates.size == 1:
