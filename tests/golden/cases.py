@@ -92,6 +92,21 @@ def library_versions() -> dict[str, str]:
     return {name: version(name) for name in LIBRARIES}
 
 
+CPU_KEY = "cpu"
+"""Key in ``VERSIONS_FILE`` of the processor the recordings were made on (``cpu_target``)."""
+
+
+def cpu_target() -> dict[str, Any]:
+    """The processor's code paths the arithmetic depends on: numpy's SIMD extensions in use
+    (its exp, log, sin of float64 differ by an ulp between them) and the CPU LLVM compiles the
+    kernels for."""
+    import llvmlite.binding as llvm
+    import numpy as np
+
+    simd = np.show_config(mode="dicts").get("SIMD Extensions", {})
+    return {"llvm_cpu": str(llvm.get_host_cpu_name()), "numpy_simd": list(simd.get("found", []))}
+
+
 def solve(document: dict[str, Any]) -> dict[str, Any]:
     """The case's result document, stripped of what is not arithmetic (``VOLATILE_KEYS``)."""
     result = solve_problem(ProblemDocument.model_validate(document))

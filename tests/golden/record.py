@@ -5,7 +5,15 @@ from __future__ import annotations
 import json
 import sys
 
-from tests.golden.cases import DATA, VERSIONS_FILE, cases, library_versions, solve
+from tests.golden.cases import (
+    CPU_KEY,
+    DATA,
+    VERSIONS_FILE,
+    cases,
+    cpu_target,
+    library_versions,
+    solve,
+)
 
 
 def main(names: list[str]) -> None:
@@ -16,7 +24,8 @@ def main(names: list[str]) -> None:
         out = solve(every[name])
         (DATA / f"{name}.json").write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
         print(f"{name}: {out['status']}, {len(out.get('history', []))} iterations")
-    versions = json.dumps(library_versions(), indent=1, sort_keys=True)
+    recorded = {**library_versions(), CPU_KEY: cpu_target()}
+    versions = json.dumps(recorded, indent=1, sort_keys=True)
     (DATA / VERSIONS_FILE).write_text(versions + "\n")
 
 
