@@ -7,22 +7,46 @@ variant meets issue 15's acceptance when it succeeded, is verified feasible and 
 0.3 % of its reference; a variant that reports ``succeeded`` outside that band is a wrong
 answer and is flagged.
 
-    python -m bench.variants [--only NAME ...]
+    python -m bench.variants [--only NAME ...] [--option METHOD.KEY=JSON ...]
+
+``--option foh-ptr.weight_trust_interval=100`` sets that option for every variant of that method
+(a sweep of a default over the suite); the other options stay as each variant gives them.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from typing import Any
 
+from app.schemas import ProblemDocument
 from tests.variants.cases import TOLERANCE, Variant, relative_error, variants
 from worker.solver.api import solve_problem
 
+Overrides = dict[str, dict[str, Any]]
 
-def run_variant(variant: Variant) -> dict[str, Any]:
-    """Solve one variant and compare it with its reference."""
+
+def parse_options(items: list[str]) -> Overrides:
+    """``METHOD.KEY=JSON`` items as {method: {key: value}}."""
+    found: Overrides = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        method, _, key = name.partition(".")
+        if not key or not value:
+            raise SystemExit(f"--option {item!r}: expected METHOD.KEY=JSON")
+        found.setdefault(method, {})[key] = json.loads(value)
+    return found
+
+
+def run_variant(variant: Variant, overrides: Overrides | None = None) -> dict[str, Any]:
+    """Solve one variant (with ``overrides`` of its method's options) against its reference."""
     doc = variant.document()
+    extra = (overrides or {}).get(variant.method)
+    if extra:
+        raw = doc.model_dump(mode="json", exclude_unset=True)
+        raw["method"] = {**raw["method"], **extra}
+        doc = ProblemDocument.model_validate(raw)
     start = time.perf_counter()
     result = solve_problem(doc)
     wall = time.perf_counter() - start
@@ -57,7 +81,11 @@ def _fmt(value: Any) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="*", default=None, help="variant names (default: all)")
+    parser.add_argument(
+        "--option", nargs="*", default=[], metavar="METHOD.KEY=JSON", help="option overrides"
+    )
     args = parser.parse_args()
+    overrides = parse_options(args.option)
     chosen = [v for v in variants() if args.only is None or v.name in args.only]
     print(
         "| variant | method | reference | result | error % | feasible | status | iterations "
@@ -66,7 +94,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for variant in chosen:
-        r = run_variant(variant)
+        r = run_variant(variant, overrides)
         rows.append(r)
         status = r["status"] + (f" ({r['failure']})" if r["failure"] else "")
         verdict = "yes" if r["meets"] else ("WRONG ANSWER" if r["wrong"] else "no")

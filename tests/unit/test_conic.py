@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
@@ -407,3 +407,44 @@ def test_fallback_not_run_without_time_left() -> None:
     backup = _FakeBackend("backup", ConicStatus.OPTIMAL)
     result = FallbackBackend(primary, backup).solve(_infeasible_problem(), time_limit_s=0.0)
     assert result.solver == "primary" and backup.calls == []
+
+
+class _StallingOnUpdate(ClarabelBackend):
+    """A real Clarabel backend whose first data-update solve reports a stall (as a reused
+    solver's stale equilibration does on some SCP subproblems); fresh setups solve normally."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.stalled = 0
+
+    def _solve_once(self, problem: ConeProblem, time_limit_s: float | None) -> ConicSolution:
+        updates = self.updates
+        solution = super()._solve_once(problem, time_limit_s)
+        if self.updates > updates and not self.stalled:
+            self.stalled += 1
+            return replace(
+                solution, status=ConicStatus.NUMERICAL_ERROR, raw_status="InsufficientProgress"
+            )
+        return solution
+
+
+def test_reused_solver_in_trouble_is_rebuilt_once() -> None:
+    rng = np.random.default_rng(4)
+    first = _random_socp(rng)
+    second = _random_socp(rng, A_pattern=first.A)
+    backend = _StallingOnUpdate()
+    backend.solve(first)
+    answer = backend.solve(second)
+    # the update stalled, the rebuilt solver answered: one more setup, both attempts' times kept
+    assert backend.stalled == 1 and (backend.setups, backend.updates) == (2, 1)
+    assert answer.status is ConicStatus.OPTIMAL and answer.raw_status == "Solved"
+    fresh = ClarabelBackend().solve(second)
+    assert answer.objective == pytest.approx(fresh.objective, rel=COST_RTOL)
+    assert answer.iterations > fresh.iterations  # the stalled attempt's iterations are counted
+
+
+def test_fresh_solver_in_trouble_is_not_retried() -> None:
+    backend = ClarabelBackend(max_iter=1)  # stops after one interior-point iteration
+    solution = backend.solve(_random_socp(np.random.default_rng(6)))
+    assert solution.status is ConicStatus.NUMERICAL_ERROR
+    assert (backend.setups, backend.updates) == (1, 0)

@@ -170,12 +170,12 @@ class FohPtrOptions(ScpRunOptions):
         "Jacobians for the curvature (it only shapes the step, not the dynamics' accuracy).",
     )
     weight_trust_interval: float = Field(
-        1000.0,
+        100.0,
         ge=0,
         description="Weight w_tr2 of sum (s - s_bar)^2 on scaled interval changes (paper 002's "
         "J_tr,2, which the paper omits; it damps the nearly free sliding of nodes along the "
         "trajectory, which otherwise creeps and stops short: paper 002 case 1 at 40 nodes "
-        "970.30 m/s with 1000, 968.53 with 10; see docs/methods/foh-ptr.md).",
+        "970.15 m/s with 100, 968.53 with 10; see docs/methods/foh-ptr.md).",
     )
     weight_nonlinear: float = Field(
         0.0,
