@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import Field, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
 
 from app.schemas import bounds
@@ -86,7 +86,15 @@ class ControlLimits(StrictModel):
     """Bounds on the bank angle, and on bank and angle-of-attack rates when they are states."""
 
     bank_max_deg: float = Field(
-        80.0, description="Bound on |bank angle|, deg, in (0, 90] (lift never points down)."
+        80.0,
+        description="Upper bound on the bank angle, deg, in (0, 90] (lift never points down); "
+        "also the bound on |bank| unless bank_min_deg is given.",
+    )
+    bank_min_deg: float | None = Field(
+        None,
+        description="Lower bound on the bank angle, deg, in [-90, bank_max_deg); none means "
+        "-bank_max_deg (a symmetric range). An asymmetric range such as Betts' [-89, 1] for "
+        "the Space Shuttle's maximum crossrange turns the vehicle one way only.",
     )
     bank_rate_max_deg_s: float | None = Field(
         None,
@@ -111,3 +119,28 @@ class ControlLimits(StrictModel):
                 {"value": value},
             )
         return value
+
+    @field_validator("bank_min_deg")
+    @classmethod
+    def _bank_min_range(cls, value: float | None, info: ValidationInfo) -> float | None:
+        if value is None:
+            return value
+        if not -90.0 <= value < 90.0:
+            raise PydanticCustomError(
+                "bank_limit",
+                "bank lower bound must be in [-90, 90) degrees, got {value}",
+                {"value": value},
+            )
+        high = info.data.get("bank_max_deg")  # absent when bank_max_deg itself was refused
+        if high is not None and value >= high:
+            raise PydanticCustomError(
+                "bank_limit",
+                "bank_min_deg ({low}) must be below bank_max_deg ({high})",
+                {"low": value, "high": high},
+            )
+        return value
+
+    @property
+    def bank_lower_deg(self) -> float:
+        """The lower bound on the bank angle, deg (-bank_max_deg when none is given)."""
+        return -self.bank_max_deg if self.bank_min_deg is None else self.bank_min_deg

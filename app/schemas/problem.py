@@ -85,6 +85,7 @@ class ProblemDocument(StrictModel):
             *self._no_fly_zone_problems(),
             *self._waypoint_problems(),
             *self._final_time_problems(),
+            *self._initial_bank_problems(),
         ]
         raise_problems("ProblemDocument", problems)
         return self
@@ -161,6 +162,25 @@ class ProblemDocument(StrictModel):
             else:
                 first_index[waypoint.order] = i
         return problems
+
+    def _initial_bank_problems(self) -> list[FieldProblem]:
+        """A given initial bank (the state's, or the method's constant reference bank) must lie
+        in the bank range: no trajectory could start outside it."""
+        low, high = self.control_limits.bank_lower_deg, self.control_limits.bank_max_deg
+        given = [(("initial_state", "bank_deg"), self.initial_state.bank_deg)]
+        method_bank = getattr(self.method, "initial_bank_deg", None)
+        given.append((("method", "initial_bank_deg"), method_bank))
+        return [
+            FieldProblem(
+                loc,
+                "bank_limit",
+                f"bank {value:g} deg is outside the bank range [{low:g}, {high:g}] deg of "
+                "control_limits",
+                value,
+            )
+            for loc, value in given
+            if value is not None and not low <= value <= high
+        ]
 
     def _final_time_problems(self) -> list[FieldProblem]:
         t0 = self.initial_state.time_s

@@ -284,7 +284,16 @@ class PathMaxima(_Record):
 class ControlPeaks(_Record):
     """Peaks of the flown control between and at the nodes, against the control limits."""
 
-    bank_deg: PathPeak | None = Field(None, description="|bank angle|, deg.")
+    bank_deg: PathPeak | None = Field(
+        None,
+        description="|bank angle|, deg; with an asymmetric bank range the largest bank against "
+        "bank_max_deg, its ratio the share of the range's half-width used from its middle.",
+    )
+    bank_min_deg: PathPeak | None = Field(
+        None,
+        description="Only with an asymmetric bank range: the smallest bank (in `max`) against "
+        "the lower bound, its ratio the share of the half-width used from the range's middle.",
+    )
     bank_rate_deg_s: PathPeak | None = Field(
         None, description="|bank rate|, deg/s (only when the problem limits it)."
     )

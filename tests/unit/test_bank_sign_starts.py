@@ -32,6 +32,18 @@ def test_the_sweep_gives_one_bank_of_each_sign() -> None:
     assert banks == [20.0, -10.0]
 
 
+def test_the_sweep_stays_in_an_asymmetric_bank_range() -> None:
+    raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
+    raw["control_limits"] = {**raw["control_limits"], "bank_min_deg": -60.0}
+    banks = sign_start_banks(build_problem(ProblemDocument.model_validate(raw)), 40)
+    assert all(-60.0 <= b <= 80.0 for b in banks) and len(banks) == 2
+    # a range too narrow for the 10-degree sweep is swept at its ends and middle
+    raw["control_limits"] = {**raw["control_limits"], "bank_min_deg": 2.0, "bank_max_deg": 8.0}
+    problem = build_problem(ProblemDocument.model_validate(raw))
+    banks = sign_start_banks(problem, 40)
+    assert len(banks) == 1 and banks[0] in (2.0, 5.0, 8.0)  # one sign only: one start
+
+
 @pytest.mark.slow
 def test_the_better_start_is_kept_at_120_nodes() -> None:
     result = solve_problem(_doc(nodes=120))

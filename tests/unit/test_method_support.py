@@ -50,6 +50,11 @@ def test_scenario_is_supported() -> None:
             "rate",
         ),
         (
+            lambda r: r["control_limits"].update(bank_min_deg=-60),
+            "control_limits.bank_min_deg",
+            "asymmetric bank range",
+        ),
+        (
             lambda r: r.update(objective="max_terminal_velocity"),
             "objective.terms[0].name",
             "cannot minimize",

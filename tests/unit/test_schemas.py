@@ -278,6 +278,47 @@ def test_bank_limit_outside_zero_to_ninety_is_rejected(bank: float) -> None:
     )
 
 
+@pytest.mark.parametrize(
+    ("limits", "field", "reason"),
+    [
+        ({"bank_max_deg": 10, "bank_min_deg": 20}, "bank_min_deg", "must be below bank_max_deg"),
+        ({"bank_max_deg": 10, "bank_min_deg": 10}, "bank_min_deg", "must be below bank_max_deg"),
+        ({"bank_min_deg": -95}, "bank_min_deg", "bank lower bound must be in [-90, 90)"),
+    ],
+)
+def test_bank_range_out_of_order_or_range_is_rejected(
+    limits: dict[str, float], field: str, reason: str
+) -> None:
+    document = reference()
+    document["control_limits"] = limits
+    assert_issue(issues_of(document), f"control_limits.{field}", reason)
+
+
+def test_asymmetric_bank_range_and_its_default() -> None:
+    document = reference()
+    document["control_limits"] = {"bank_max_deg": 1, "bank_min_deg": -89}
+    assert ProblemDocument.model_validate(document).control_limits.bank_lower_deg == -89
+    document["control_limits"] = {"bank_max_deg": 70}
+    assert ProblemDocument.model_validate(document).control_limits.bank_lower_deg == -70
+
+
+@pytest.mark.parametrize(
+    ("where", "field"),
+    [
+        (("initial_state", "bank_deg"), "initial_state.bank_deg"),
+        (("method", "initial_bank_deg"), "method.initial_bank_deg"),
+    ],
+)
+def test_initial_bank_outside_the_bank_range_is_rejected(
+    where: tuple[str, str], field: str
+) -> None:
+    document = reference()
+    document["control_limits"] = {"bank_max_deg": 1, "bank_min_deg": -89}
+    document["method"] = {"name": "foh-ptr"}
+    document[where[0]][where[1]] = 20
+    assert_issue(issues_of(document), field, "outside the bank range [-89, 1] deg")
+
+
 def test_no_fly_zone_containing_initial_point_is_rejected() -> None:
     document = reference()
     document["no_fly_zones"] = [

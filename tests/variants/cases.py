@@ -42,6 +42,7 @@ REQUIRED: frozenset[str] = frozenset(
         "energy-terminal-18-65-20",
         "energy-terminal-18-65-20-hard",
         "foh-active-nfz",
+        "foh-bank-min-60",
         "foh-final-time-1500",
         "foh-final-time-1650",
         "foh-heat-rate-1400",

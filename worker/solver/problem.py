@@ -63,7 +63,8 @@ class EntryProblem:
     omega: float
     limits: PathLimits
     heat_model: HeatRateModel | None
-    bank_max: float
+    bank_max: float  # radians, the upper bound on the bank
+    bank_min: float  # radians, the lower bound (-bank_max for a symmetric range)
     bank_rate_max: float | None
     y0: np.ndarray  # [r, theta, phi, V, gamma, psi] at the initial time
     initial_bank: float | None  # radians; None when the request leaves the initial bank free
@@ -208,6 +209,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         limits=limits,
         heat_model=heat_model,
         bank_max=math.radians(doc.control_limits.bank_max_deg),
+        bank_min=math.radians(doc.control_limits.bank_lower_deg),
         bank_rate_max=(
             math.radians(doc.control_limits.bank_rate_max_deg_s) * scales.time_s
             if doc.control_limits.bank_rate_max_deg_s is not None

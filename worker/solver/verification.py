@@ -418,27 +418,36 @@ def _control_peaks(
     """The largest |bank| (and |bank rate|, when the problem limits it) of the flown control on
     the dense grid, against the problem's limits; and whether both hold. A method bounds its
     controls at the nodes; between them the flown profile (quadratic in time under a
-    first-order-hold rate) may turn beyond the limit, which only this check sees."""
+    first-order-hold rate) may turn beyond the limit, which only this check sees. An asymmetric
+    bank range is checked on both sides: the largest bank against the upper bound (``bank_deg``)
+    and the smallest against the lower (``bank_min_deg``), each ratio the share of the range's
+    half-width used from its middle (for a symmetric range, |bank| / limit)."""
     sc = problem.scales
     bank = bank_profile_at(traj, s_fine)
-    checks: list[tuple[str, Array, float]] = [
-        ("bank_deg", np.degrees(np.abs(bank)), math.degrees(problem.bank_max))
-    ]
+    low, high = math.degrees(problem.bank_min), math.degrees(problem.bank_max)
+    checks: list[tuple[str, Array, float, float]] = []
+    if low == -high:
+        checks.append(("bank_deg", np.degrees(np.abs(bank)), high, 0.0))
+    else:
+        checks.append(("bank_deg", np.degrees(bank), high, 0.5 * (low + high)))
+        checks.append(("bank_min_deg", np.degrees(bank), low, 0.5 * (low + high)))
     if problem.bank_rate_max is not None:
         rate = np.abs(bank_rate_at(traj, t_fine, bank))
         per_s = math.degrees(1.0) / sc.time_s
-        checks.append(("bank_rate_deg_s", rate * per_s, problem.bank_rate_max * per_s))
+        checks.append(("bank_rate_deg_s", rate * per_s, problem.bank_rate_max * per_s, 0.0))
     peaks: dict[str, Any] = {}
     ok = True
-    for key, values, limit in checks:
-        at = int(np.argmax(values))
-        within = bool(values[at] <= limit * (1.0 + tol.control_limit_relative))
+    for key, values, limit, middle in checks:
+        share = (values - middle) / (limit - middle)  # <= 1 within the limit, on either side
+        at = int(np.argmax(share))
+        ratio = float(share[at])
+        within = bool(ratio <= 1.0 + tol.control_limit_relative)
         ok &= within
         peaks[key] = {
             "max": float(values[at]),
             "at_time_s": float(t_fine[at] * sc.time_s),
             "limit": limit,
-            "ratio": float(values[at]) / limit,
+            "ratio": ratio,
             "within": within,
         }
     return peaks, ok

@@ -108,17 +108,24 @@ def equality_blocks(sub: FohSubproblem) -> list[Block]:
 
 
 def bound_block(
-    name: str, cols: Array, scale: float, bound: float, value: Callable[[SubproblemData], Array]
+    name: str,
+    cols: Array,
+    scale: float,
+    bound: float,
+    value: Callable[[SubproblemData], Array],
+    lower: float | None = None,
 ) -> Block:
-    """|v| <= bound at every node for the variable on ``cols`` (scaled by ``scale``; ``value(d)``
-    its reference): rows scale dv <= bound - v_bar, then -scale dv <= bound + v_bar."""
+    """lower <= v <= bound at every node (lower = -bound by default) for the variable on
+    ``cols`` (scaled by ``scale``; ``value(d)`` its reference): rows scale dv <= bound - v_bar,
+    then -scale dv <= v_bar - lower."""
     K = cols.size
     rows = np.arange(K)
+    low = -bound if lower is None else lower
 
     def rhs(d: SubproblemData) -> Array:
-        """bound - v_bar at every node, then bound + v_bar."""
+        """bound - v_bar at every node, then v_bar - lower."""
         v = value(d)
-        return np.concatenate([bound - v, bound + v])
+        return np.concatenate([bound - v, v - low])
 
     return Block(
         name, "nonneg", 2 * K, (Term(rows, cols, scale), Term(K + rows, cols, -scale)), rhs=rhs
@@ -147,12 +154,12 @@ def bank_vertex(z_bank: Array, w: Array, s: Array) -> tuple[Array, Array, Array,
 
 
 def bank_vertex_block(sub: FohSubproblem) -> Block:
-    """|sigma| <= sigma_max where the bank turns inside each interval (``bank_vertex``), so the
-    flown bank, not only its node values, stays within the limit: without these rows a bank
-    rate that reverses within a long interval carried the bank to 180 deg between nodes held at
-    80 deg (paper 002 case 1, 40 nodes). Rows k (upper) and N + k (lower) on sigma_k, w_k,
-    w_{k+1} and, on the adaptive grid, s_k; at a converged reference tau* is the true turning
-    point, so the bound holds along the whole interval."""
+    """sigma_min <= sigma <= sigma_max where the bank turns inside each interval
+    (``bank_vertex``), so the flown bank, not only its node values, stays within the range:
+    without these rows a bank rate that reverses within a long interval carried the bank to
+    180 deg between nodes held at 80 deg (paper 002 case 1, 40 nodes). Rows k (upper) and
+    N + k (lower) on sigma_k, w_k, w_{k+1} and, on the adaptive grid, s_k; at a converged
+    reference tau* is the true turning point, so the bound holds along the whole interval."""
     N = sub.N
     sigma = sub.state_index[4]
     cols = [sub.col_z[:-1, sigma], sub.col_w[:-1], sub.col_w[1:]]
@@ -171,9 +178,9 @@ def bank_vertex_block(sub: FohSubproblem) -> Block:
         return np.concatenate(parts, axis=1)
 
     def rhs(d: SubproblemData) -> Array:
-        """sigma_max - sigma(tau*) for the upper rows, then sigma_max + sigma(tau*)."""
+        """sigma_max - sigma(tau*) for the upper rows, then sigma(tau*) - sigma_min."""
         value = bank_vertex(d.z[:, sigma], d.w, d.s)[1]
-        return np.concatenate([sub.bank_max - value, sub.bank_max + value])
+        return np.concatenate([sub.bank_max - value, value - sub.bank_min])
 
     return Block(
         "bank_between_nodes",
@@ -194,7 +201,14 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
     r, th, ph, v, sigma = sub.state_index
     col_z, col_buf = sub.col_z, sub.col_buf
     blocks = [
-        bound_block("bank", col_z[:, sigma], Dz[sigma], sub.bank_max, lambda d: d.z[:, sigma]),
+        bound_block(
+            "bank",
+            col_z[:, sigma],
+            Dz[sigma],
+            sub.bank_max,
+            lambda d: d.z[:, sigma],
+            lower=sub.bank_min,
+        ),
         bank_vertex_block(sub),
     ]
     if sub.bank_rate_max is not None:

@@ -54,6 +54,7 @@ class FohSubproblem:
         hessian_blocks: bool = False,
         identity_e: bool = False,
         layout: StateLayout = BANK_STATE,
+        bank_min: float | None = None,
     ) -> None:
         self.K = K = nodes
         self.N = N = nodes - 1
@@ -69,6 +70,7 @@ class FohSubproblem:
         self.terminal = terminal
         self.soft = [t for t in terminal if t.kind == "soft"]
         self.bank_max = bank_max
+        self.bank_min = -bank_max if bank_min is None else bank_min
         self.bank_rate_max = bank_rate_max
         self.n_limits = n_limits
         self.n_zones = n_zones

@@ -114,9 +114,13 @@ def _sweep(problem: EntryProblem, candidates: Array, s: Array) -> tuple[Array, A
 
 
 def _sweep_candidates(problem: EntryProblem) -> Array:
-    """The sweep's constant banks within the bank limit, deg."""
-    limit = math.degrees(problem.bank_max)
-    candidates: Array = SWEEP_DEG[np.abs(SWEEP_DEG) <= limit]
+    """The sweep's constant banks within the bank range, deg; a range too narrow to hold three
+    of them is swept at its ends and middle as well."""
+    low, high = math.degrees(problem.bank_min), math.degrees(problem.bank_max)
+    sweep = SWEEP_DEG
+    candidates: Array = sweep[(sweep >= low) & (sweep <= high)]
+    if candidates.size < 3:
+        candidates = np.unique(np.r_[candidates, low, 0.5 * (low + high), high])
     return candidates
 
 

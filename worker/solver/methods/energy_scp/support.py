@@ -38,6 +38,15 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
                 f"{NAME} has bank angle as a control, not a state, so it cannot limit its rate",
             )
         )
+    limits = doc.control_limits
+    if limits.bank_min_deg is not None and limits.bank_min_deg != -limits.bank_max_deg:
+        out.append(
+            issue(
+                "control_limits.bank_min_deg",
+                f"{NAME} bounds |bank| symmetrically (its control disc); an asymmetric bank "
+                "range needs foh-ptr, or leave bank_min_deg out",
+            )
+        )
     if doc.no_fly_zones:
         out.append(issue("no_fly_zones", f"{NAME} does not handle no-fly zones"))
     if doc.waypoints:

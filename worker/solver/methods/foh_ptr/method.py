@@ -124,6 +124,7 @@ class FohPtr:
                 trust_units=self.scale,
             ),
             bank_max=problem.bank_max,
+            bank_min=problem.bank_min,
             bank_rate_max=problem.bank_rate_max,
             n_limits=len(lin.limits),
             n_zones=len(problem.no_fly_zones),
