@@ -4,9 +4,10 @@ The routes that take a problem read their body through :func:`problem_body` inst
 FastAPI parse it, so that
 
 * the caller is authenticated first: a malformed body without a key is a 401, not a 400/422;
-* decoding and checking run in the thread pool, never on the event loop, and a client's large
-  bodies are read and decoded one at a time, within a share of the process's time
-  (:mod:`app.body_lanes`);
+* decoding and checking run in the thread pool (only bodies of at most
+  :data:`INLINE_DECODE_BYTES`, which take microseconds, are decoded on the event loop), and a
+  client's large bodies are read and decoded one at a time, within a share of the process's
+  time (:mod:`app.body_lanes`);
 * a structural check bounds the work before validation: no value nests deeper than
   :data:`MAX_DEPTH`, no array has more than :data:`MAX_ARRAY_ITEMS` items, no object more than
   :data:`MAX_OBJECT_MEMBERS` members, there are at most :data:`MAX_CONTAINERS` arrays and
@@ -39,6 +40,9 @@ MAX_OBJECT_MEMBERS = 100
 """Most members of one object in a body (the contract's largest object has fewer than 50)."""
 MAX_CONTAINERS = 5000
 """Most arrays and objects in a body (a document with two 200-row tables has about 500)."""
+INLINE_DECODE_BYTES = 4096
+"""Bodies up to this size (a scenario request, a small problem) are decoded on the event loop:
+that takes microseconds, less than handing them to the thread pool and back."""
 
 Path = tuple[str | int, ...]
 
@@ -207,6 +211,8 @@ async def problem_body(request: Request, service: ServiceDep, principal: Princip
     content_type = request.headers.get("content-type")
     if not is_large(request.headers.get("content-length")):
         raw = await request.body()
+        if len(raw) <= INLINE_DECODE_BYTES:  # microseconds: less than a thread-pool round trip
+            return decode_body(raw, content_type)
         return await run_in_threadpool(decode_body, raw, content_type)
     async with service.body_lanes.lane(principal.client):
         raw = await request.body()

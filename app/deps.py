@@ -1,7 +1,8 @@
 """Typed FastAPI dependencies: the service state, its parts and the caller's identity.
 
-They are ``async`` because they do no I/O: FastAPI then resolves them on the event loop
-instead of spending a thread-pool round trip on each.
+They are ``async`` so that FastAPI resolves them on the event loop instead of spending a
+thread-pool round trip on each: those that may do I/O (the API key's lookup, a rate limit
+counted in Redis) hand only that I/O to the thread pool, and only when there is some to do.
 """
 
 from __future__ import annotations
@@ -11,10 +12,12 @@ from typing import Annotated
 
 from fastapi import Depends, Request, Security
 from fastapi.security import APIKeyHeader
+from starlette.concurrency import run_in_threadpool
 
 from app.auth import API_KEY_HEADER, Principal, authenticate
 from app.dispatch import Dispatcher
 from app.errors import ApiError, not_found
+from app.ratelimit import Kind
 from app.settings import Settings
 from app.state import ServiceState
 from app.storage.session import Database
@@ -54,17 +57,22 @@ _JOB_ID = re.compile(r"[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{
 """The form of every job id (a UUID in canonical form); nothing else can name a job."""
 
 
-def get_principal(
+async def get_principal(
     request: Request,
     service: ServiceDep,
     api_key: Annotated[str | None, Security(api_key_header)] = None,
 ) -> Principal:
-    """The authenticated caller (a database lookup in api-keys mode, so a sync dependency).
+    """The authenticated caller (in api-keys mode a database lookup, made in the thread pool).
 
     It guards every route of a job too: a ``job_id`` that is no job id (``%00``, megabytes, ...)
     is the 404 of an unknown job once the caller is known, and never reaches the database.
     """
-    principal = authenticate(service.database, service.settings, api_key)
+    if service.settings.auth_mode == "single-user":  # no I/O: no thread-pool round trip
+        principal = authenticate(service.database, service.settings, api_key)
+    else:
+        principal = await run_in_threadpool(
+            authenticate, service.database, service.settings, api_key
+        )
     job_id = request.path_params.get("job_id")
     if isinstance(job_id, str) and _JOB_ID.fullmatch(job_id) is None:
         raise not_found("job", job_id if len(job_id) <= 64 else f"{job_id[:64]}...")
@@ -74,27 +82,34 @@ def get_principal(
 PrincipalDep = Annotated[Principal, Depends(get_principal)]
 
 
-def _limit(service: ServiceState, principal: Principal, kind: str) -> str:
+async def _limit(service: ServiceState, principal: Principal, kind: str) -> str:
     """Charge a read, or test a submission's rejected-submission window, against the caller's
     client's and key's moving windows (429 with Retry-After when one is full); returns the
     owner for the route: the client's name, carrying its quota for a submission (the submit
     use case tests and uses the submit window itself, once it knows the request is no replay)."""
     quota = service.rate_limiter.quota(service.settings, principal.client, principal.key_id)
-    refusal = quota.charge("read") if kind == "read" else quota.check("rejected")
+    counted: Kind = "read" if kind == "read" else "rejected"
+    count = quota.charge if kind == "read" else quota.check
+    if not quota.limits(counted):  # nothing to count: no thread-pool round trip
+        refusal = None
+    elif service.rate_limiter.blocking:
+        refusal = await run_in_threadpool(count, counted)
+    else:  # counted in memory, in microseconds
+        refusal = count(counted)
     if refusal is not None:
         raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
     return principal.client if kind == "read" else quota.submitter()
 
 
-def get_owner(service: ServiceDep, principal: PrincipalDep) -> str:
+async def get_owner(service: ServiceDep, principal: PrincipalDep) -> str:
     """The caller's client name, after counting one read against its rate limits."""
-    return _limit(service, principal, "read")
+    return await _limit(service, principal, "read")
 
 
-def get_submitter(service: ServiceDep, principal: PrincipalDep) -> str:
+async def get_submitter(service: ServiceDep, principal: PrincipalDep) -> str:
     """The caller's client name with its quota, once its rejected-submission window admits
     one more (a client refused too often is answered 429 before its body is looked at)."""
-    return _limit(service, principal, "submit")
+    return await _limit(service, principal, "submit")
 
 
 SettingsDep = Annotated[Settings, Depends(get_settings_dep)]

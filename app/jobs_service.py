@@ -251,7 +251,7 @@ def _mark_sent(database: Database, job_id: str) -> None:
     """Close the job's outbox entry; if this fails, the relay sends the job once more (a
     duplicate delivery does nothing)."""
     try:
-        with database.session() as session:
+        with database.autocommit() as session:  # one conditional UPDATE
             repository.mark_dispatched(session, job_id)
     except Exception:
         log.warning("job %s: could not record that it was sent", job_id, exc_info=True)

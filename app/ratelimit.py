@@ -56,6 +56,9 @@ def _item(limit: int, window_s: float) -> RateLimitItemPerSecond:
 class RateLimiter(Protocol):
     """Counts admitted hits per bucket in a moving window."""
 
+    blocking: bool
+    """Whether counting waits on I/O (Redis), so callers on an event loop hand it to a thread."""
+
     def hit(self, bucket: str, limit: int, window_s: float) -> float | None:
         """Count one hit; ``None`` if admitted, else seconds until the window admits one."""
 
@@ -101,6 +104,8 @@ class _MovingWindow:
 class MemoryRateLimiter:
     """Moving windows in this process's memory (one API process: embedded mode)."""
 
+    blocking = False
+
     def __init__(self) -> None:
         self._window = _MovingWindow(MemoryStorage())
         # ``limits`` locks each key, but drops an idle key's lock on its expiry timer; one lock
@@ -127,6 +132,8 @@ class MemoryRateLimiter:
 
 class RedisRateLimiter:
     """Moving windows in Redis, shared by every API process using the same ``namespace``."""
+
+    blocking = True
 
     def __init__(self, url: str, namespace: str, timeout_s: float) -> None:
         self._storage = RedisStorage(
@@ -230,6 +237,10 @@ class Quota:
             f"too many {what}{bucket.scope}: at most {bucket.limit} per {window}",
             max(1, math.ceil(retry_after)),
         )
+
+    def limits(self, kind: Kind) -> bool:
+        """Whether any window counts requests of ``kind`` (False: charging it does nothing)."""
+        return self._limit(kind) > 0
 
     def charge(self, kind: Kind) -> Refusal | None:
         """Use one unit of ``kind`` in the key's and the client's windows; the refusal if one

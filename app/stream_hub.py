@@ -1,7 +1,8 @@
 """The event streams of one API process: caps on how many are open, and one shared watcher.
 
-Streams cost no database reads of their own. One watcher task per process reads every watched
-job's row in one query when a notice says it changed (or once per poll interval), turns it into
+Streams cost no database reads of their own. One watcher task per process reads the rows of the
+jobs a notice named in one query (every watched job's, in two, once per poll interval: their
+heads first, then only the changed rows; never their problem or result documents), turns it into
 a :class:`JobFrame` (each iteration's event data encoded once) and wakes every stream of that job;
 each stream only keeps its own cursor (iterations sent, attempt, phase). Reads are paced by a
 bucket of ``READ_BURST`` reads refilled one per ``min_read_gap_s``: at most ``READ_BURST`` +
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import json
 import logging
 import threading
@@ -29,6 +31,7 @@ from typing import Any
 
 import anyio.to_thread
 from sqlalchemy import select
+from sqlalchemy.orm import defer
 from sse_starlette.sse import ServerSentEvent
 
 from app.errors import ApiError
@@ -201,21 +204,40 @@ class _Watch:
         return ServerSentEvent(data=self._end[1], event="end", id=str(ident)).encode()
 
 
-def read_changed(database: Database, known: dict[str, Head | None]) -> dict[str, Job | None]:
+_LIGHT = (defer(Job.problem, raiseload=True), defer(Job.result, raiseload=True))
+"""A stream needs neither the problem nor the result document: they are not read."""
+
+
+def read_changed(
+    database: Database, known: dict[str, Head | None], *, likely_changed: bool = False
+) -> dict[str, Job | None]:
     """The rows of the jobs in ``known`` whose (status, updated_at) differ from what is known,
-    and ``None`` for those that are gone: two queries, whatever the number of jobs."""
+    and ``None`` for those that are gone: two queries, whatever the number of jobs.
+
+    With ``likely_changed`` (each job was named by a notice) the rows are read in one query
+    and those unchanged dropped here: a notice almost always follows a write.
+    """
     ids = list(known)
     with database.reader() as session:
+        if likely_changed:
+            rows = session.execute(select(Job).options(*_LIGHT).where(Job.id.in_(ids))).scalars()
+            found = {job.id: job for job in rows}
+            out: dict[str, Job | None] = {job_id: None for job_id in ids if job_id not in found}
+            for job_id, job in found.items():
+                if (job.status, job.updated_at) != known.get(job_id):
+                    out[job_id] = job
+            return out
         heads = {
             job_id: (status, updated_at)
             for job_id, status, updated_at in session.execute(
                 select(Job.id, Job.status, Job.updated_at).where(Job.id.in_(ids))
             )
         }
-        out: dict[str, Job | None] = {job_id: None for job_id in ids if job_id not in heads}
+        out = {job_id: None for job_id in ids if job_id not in heads}
         changed = [job_id for job_id, head in heads.items() if head != known.get(job_id)]
         if changed:
-            for job in session.execute(select(Job).where(Job.id.in_(changed))).scalars():
+            query = select(Job).options(*_LIGHT).where(Job.id.in_(changed))
+            for job in session.execute(query).scalars():
                 out[job.id] = job
         return out
 
@@ -323,7 +345,8 @@ class StreamHub:
             self._wake.clear()
             self._ended.clear()
             started = time.monotonic()
-            if self._all_dirty or started - last_full >= interval:
+            noticed = not (self._all_dirty or started - last_full >= interval)
+            if not noticed:
                 due: Iterable[str] = list(self._watches)
                 last_full = started
             else:
@@ -331,7 +354,7 @@ class StreamHub:
             self._dirty.clear()
             self._all_dirty = False
             if due:
-                await self._refresh(due)
+                await self._refresh(due, likely_changed=noticed)
                 with contextlib.suppress(TimeoutError):  # paced, unless an attempt ends
                     await asyncio.wait_for(self._ended.wait(), self._pace())
 
@@ -343,10 +366,11 @@ class StreamHub:
         self._refilled = now
         return max(0.0, -self._tokens * self._min_gap)
 
-    async def _refresh(self, due: Iterable[str]) -> None:
+    async def _refresh(self, due: Iterable[str], likely_changed: bool = False) -> None:
         known = {job_id: self._watches[job_id].head for job_id in due if job_id in self._watches}
+        read = functools.partial(read_changed, likely_changed=likely_changed)
         try:
-            rows = await anyio.to_thread.run_sync(read_changed, self._database, known)
+            rows = await anyio.to_thread.run_sync(read, self._database, known)
         except Exception as exc:
             self._dirty.update(known)  # read them again at the next turn
             if not self._failing:

@@ -35,16 +35,23 @@ class Heartbeat:
         """Start renewing in the background."""
         self._thread.start()
 
-    def stop(self) -> None:
-        """Stop renewing (the attempt is over) and wait for the thread."""
+    def stop(self, wait: bool = True) -> None:
+        """Stop renewing (the attempt is over) and, with ``wait``, wait for the thread (a
+        renewal still under way is fenced by the attempt: it cannot touch a finished job)."""
         self._stop.set()
-        self._thread.join(timeout=5.0)
+        if wait:
+            self.join()
+
+    def join(self) -> None:
+        """Wait for the thread to end after :meth:`stop`."""
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
 
     def _run(self) -> None:
         interval = self._lease_s / 3.0
         while not self._stop.wait(interval):
             try:
-                with self._database.session() as session:
+                with self._database.autocommit() as session:  # one fenced UPDATE
                     owned = repository.renew_lease(
                         session, self._job_id, self._attempt, self._lease_s
                     )

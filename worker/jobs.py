@@ -60,15 +60,20 @@ class _Attempt:
     deadline_hit: bool = False
     stop_requested: bool = False
     write_errors: int = 0
+    stored: int | None = 0
+    """Iterations the stored history holds, as this attempt's last write left it (``None``
+    after a write that failed: it may or may not have been committed)."""
 
     def elapsed(self) -> float:
         return time.monotonic() - self.started
 
-    def _write(self, what: str, kind: str, write: Callable[[Any], bool]) -> None:
+    def _write(self, what: str, kind: str, write: Callable[[Any], bool]) -> bool:
         """Run one progress ``write`` (True while the attempt owns the job), then wake the
-        job's event streams with ``kind``; a lost write is logged, it must not kill the solve."""
+        job's event streams with ``kind``; a lost write is logged, it must not kill the solve.
+        Each write is one fenced statement or two: no transaction around them. True if the
+        write was made."""
         try:
-            with self.database.session() as session:
+            with self.database.autocommit() as session:
                 owned = write(session)
             if not owned:
                 self.stop_requested = True
@@ -77,9 +82,10 @@ class _Attempt:
         except Exception:
             self.write_errors += 1
             log.exception("job %s: could not store %s", self.job_id, what)
-            return
+            return False
         if self.notify is not None:
             self.notify(self.job_id, kind)
+        return owned
 
     def on_iteration(self, record: Any) -> None:
         """Append the new iteration to the stored history (with any an earlier lost write
@@ -89,13 +95,16 @@ class _Attempt:
             clean = {"record": clean}
         self.history.append(clean)
         history, progress = list(self.history), progress_of(clean, self.elapsed())
-        self._write(
+        stored, self.stored = self.stored, None  # unknown until the write is known made
+        made = self._write(
             "iteration progress",
             "iteration",
             lambda session: repository.record_iteration(
-                session, self.job_id, self.attempt, history, progress, self.lease_s
+                session, self.job_id, self.attempt, history, progress, self.lease_s, stored
             ),
         )
+        if made:
+            self.stored = len(history)
 
     def on_phase(self, phase: str) -> None:
         """Store that the attempt entered ``phase`` (compiling, optimizing, verifying), keeping
@@ -208,7 +217,7 @@ def _finish(attempt: _Attempt, outcome: Outcome) -> str | None:
     DELETE answered 202 always ends the job ``cancelled``. Returns the status stored, or
     ``None`` when the attempt no longer owns the job.
     """
-    with attempt.database.session() as session:
+    with attempt.database.autocommit() as session:  # each write is one fenced statement
         if _store(session, attempt, outcome):
             return outcome.status
         if outcome.status == JobStatus.CANCELLED:
@@ -242,14 +251,15 @@ def _finish_despite_outages(attempt: _Attempt, outcome: Outcome, retry_s: float)
 
 def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
     """Complete the stored history with what its lost writes missed, then store the outcome
-    (the result's own history is the stored one: it is kept once)."""
+    (the result's own history is the stored one: it is kept once).
+
+    When the attempt knows how many records are stored (its writes all went through) both
+    are one statement; otherwise, or when that one does not apply, two steps tell the cases
+    apart (a lost write, a job no longer owned, a cancel requested).
+    """
     allowed_from = [JobStatus.RUNNING.value, JobStatus.QUEUED.value]
     # queued too: the sweeper may have re-queued the job while the database was away
     # and no other attempt has claimed it yet, so this finished result is still the job's
-    if not repository.complete_history(
-        session, attempt.job_id, attempt.attempt, outcome.history, allowed_from
-    ):
-        return False
     last = outcome.history[-1] if outcome.history else None
     values: dict[str, Any] = {
         "result": repository.result_for_storage(outcome.result),
@@ -259,6 +269,28 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
     }
     if last is not None:
         values["progress"] = progress_of(last, attempt.elapsed())
+    unless_cancel_requested = outcome.status != JobStatus.CANCELLED
+    if (
+        attempt.stored is not None
+        and attempt.stored <= len(outcome.history)
+        and repository.store_outcome(
+            session,
+            attempt.job_id,
+            attempt=attempt.attempt,
+            history=outcome.history,
+            stored=attempt.stored,
+            to=outcome.status,
+            allowed_from=allowed_from,
+            values=values,
+            unless_cancel_requested=unless_cancel_requested,
+        )
+    ):
+        return True
+    if not repository.complete_history(
+        session, attempt.job_id, attempt.attempt, outcome.history, allowed_from
+    ):
+        return False
+    attempt.stored = len(outcome.history)
     return repository.transition(
         session,
         attempt.job_id,
@@ -266,7 +298,7 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
         allowed_from=allowed_from,
         attempt=attempt.attempt,
         values=values,
-        unless_cancel_requested=outcome.status != JobStatus.CANCELLED,
+        unless_cancel_requested=unless_cancel_requested,
     )
 
 
@@ -287,7 +319,7 @@ def execute_job(
     """
     settings = settings or get_settings()
     database = get_database(settings.effective_database_url)
-    with database.session() as session:
+    with database.autocommit() as session:  # one conditional UPDATE ... RETURNING
         claim = repository.claim_attempt(session, job_id, settings.max_attempts, settings.lease_s)
     problem_raw = claim.problem
     if claim.state is not ClaimState.CLAIMED or problem_raw is None:
@@ -317,13 +349,14 @@ def execute_job(
         except timeout_exceptions:  # a soft limit fires once: the second write is not interrupted
             stored = _finish_despite_outages(attempt, outcome, settings.result_write_retry_s)
     finally:
-        attempt.heartbeat.stop()
+        attempt.heartbeat.stop(wait=False)
+    if notify is not None:  # first: the streams' end waits for nothing else
+        notify(job_id, "end")
+    attempt.heartbeat.join()
     if stored:
         log.info("job %s: attempt %d stored outcome %s", job_id, attempt.attempt, stored)
     else:
         log.warning("job %s: attempt %d no longer owns the job", job_id, attempt.attempt)
-    if notify is not None:
-        notify(job_id, "end")
     return stored or outcome.status
 
 

@@ -7,7 +7,7 @@ overwrite a finished one. Worker writes are also fenced by the attempt number th
 The convergence history is stored once, in ``jobs.history``, and only appended to: each write
 sends the records the database does not have yet (:func:`record_iteration`,
 :func:`complete_history`), and a stored result document keeps an empty ``history`` that
-:func:`get_result_text` fills from it.
+:func:`get_result_text` fills from it (in SQL: the document is served as the database renders it).
 """
 
 from __future__ import annotations
@@ -20,7 +20,20 @@ from datetime import datetime, timedelta
 from enum import StrEnum
 from typing import Any
 
-from sqlalchemy import Text, and_, bindparam, case, cast, delete, func, or_, select, update
+from sqlalchemy import (
+    String,
+    Text,
+    and_,
+    bindparam,
+    case,
+    cast,
+    delete,
+    func,
+    literal_column,
+    or_,
+    select,
+    update,
+)
 from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.orm import Session
 
@@ -93,32 +106,38 @@ class ResultText:
 
 
 def get_result_text(session: Session, job_id: str, owner: str) -> ResultText | None:
-    """The owner's job result as JSON text, its ``history`` filled from the job's history."""
+    """The owner's job result as JSON text, its ``history`` filled from the job's history.
+
+    The database merges the two and renders the text: the document is neither parsed nor
+    serialized here (it can be hundreds of kilobytes), only handed on.
+    """
     row = session.execute(
         select(
             Job.status,
             Job.error_code,
             Job.error_message,
-            cast(Job.result, Text),
-            cast(Job.history, Text),
+            cast(_result_with_history(session), Text),
         ).where(Job.id == job_id, Job.owner == owner)
     ).one_or_none()
     if row is None:
         return None
-    status, code, message, text, history = row
+    status, code, message, text = row
     if text in (None, "null"):
         return ResultText(status, code, message, None)
-    return ResultText(status, code, message, with_history(text, history or "[]"))
+    return ResultText(status, code, message, text)
 
 
-def with_history(result_json: str, history_json: str) -> str:
-    """A stored result document's JSON text with its ``history`` (stored empty, see
+def _result_with_history(session: Session) -> Any:
+    """SQL for the stored result document with its ``history`` (stored empty, see
     :func:`result_for_storage`) replaced by the job's; a document without one is left alone."""
-    document = json.loads(result_json)
-    if not isinstance(document, dict) or "history" not in document:
-        return result_json
-    document["history"] = json.loads(history_json)
-    return json.dumps(document)
+    if session.get_bind().dialect.name == "postgresql":
+        has_history = and_(
+            func.jsonb_typeof(Job.result) == "object",
+            Job.result.op("?")(bindparam("history_key", "history", type_=String)),
+        )
+        merged = func.jsonb_set(Job.result, literal_column("'{history}'"), Job.history, False)
+        return case((has_history, merged), else_=Job.result)
+    return func.json_replace(Job.result, "$.history", func.json(Job.history))
 
 
 def result_for_storage(result: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -157,6 +176,28 @@ def list_jobs(
     return list(session.execute(stmt).scalars()), int(total)
 
 
+def _transition_parts(
+    job_id: str,
+    to: str,
+    allowed_from: Iterable[str],
+    attempt: int | None,
+    values: dict[str, Any] | None,
+    unless_cancel_requested: bool,
+) -> tuple[list[Any], dict[str, Any]]:
+    """The conditions and the new values of moving ``job_id`` to status ``to``."""
+    now = utcnow()
+    fields: dict[str, Any] = {"status": to, "updated_at": now, **(values or {})}
+    if to not in ACTIVE_STATUSES:
+        fields.setdefault("finished_at", now)
+        fields.setdefault("lease_expires_at", None)
+    conditions = [Job.id == job_id, Job.status.in_(list(allowed_from))]
+    if attempt is not None:
+        conditions.append(Job.attempts == attempt)
+    if unless_cancel_requested:
+        conditions.append(Job.cancel_requested.is_(False))
+    return conditions, fields
+
+
 def transition(
     session: Session,
     job_id: str,
@@ -169,18 +210,42 @@ def transition(
 ) -> bool:
     """Move ``job_id`` to status ``to`` only if it is in ``allowed_from`` (and, with
     ``unless_cancel_requested``, no cancel was requested); True if it moved."""
-    now = utcnow()
-    fields: dict[str, Any] = {"status": to, "updated_at": now, **(values or {})}
-    if to not in ACTIVE_STATUSES:
-        fields.setdefault("finished_at", now)
-        fields.setdefault("lease_expires_at", None)
-    stmt = update(Job).where(Job.id == job_id, Job.status.in_(list(allowed_from)))
-    if attempt is not None:
-        stmt = stmt.where(Job.attempts == attempt)
-    if unless_cancel_requested:
-        stmt = stmt.where(Job.cancel_requested.is_(False))
-    result = session.execute(stmt.values(**fields).execution_options(**_NO_SYNC))
-    return _rowcount(result) == 1
+    conditions, fields = _transition_parts(
+        job_id, to, allowed_from, attempt, values, unless_cancel_requested
+    )
+    stmt = update(Job).where(*conditions).values(**fields).execution_options(**_NO_SYNC)
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def store_outcome(
+    session: Session,
+    job_id: str,
+    *,
+    attempt: int,
+    history: Sequence[dict[str, Any]],
+    stored: int,
+    to: str,
+    allowed_from: Iterable[str],
+    values: dict[str, Any],
+    unless_cancel_requested: bool,
+) -> bool:
+    """:func:`complete_history` and :func:`transition` of an attempt's outcome in one
+    statement, when the stored history holds exactly ``stored`` records (as the attempt's own
+    writes say): False when it does not, or when the transition does not apply (the caller
+    then takes the two steps, which tell the cases apart)."""
+    conditions, fields = _transition_parts(
+        job_id, to, allowed_from, attempt, values, unless_cancel_requested
+    )
+    tail = list(history[stored:])
+    if tail:
+        fields["history"] = _appended(session, tail)
+    stmt = (
+        update(Job)
+        .where(*conditions, _history_length(session) == stored)
+        .values(**fields)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
 
 
 class ClaimState(StrEnum):
@@ -308,23 +373,42 @@ def _append_history(
     records: Sequence[dict[str, Any]],
     statuses: Iterable[str],
     values: dict[str, Any],
+    stored: int | None = None,
 ) -> bool:
     """Append to the job's history the records of ``records`` (the attempt's history so far)
     that it does not hold yet, and set ``values``; fenced by the attempt and ``statuses``.
 
     The stored length is read first and the write requires it unchanged, so a write that was
-    committed although its caller saw an error is never appended twice.
+    committed although its caller saw an error is never appended twice. A caller that knows
+    the length (``stored``: its last write succeeded) saves the read: the write requires that
+    length, and only when it does not apply is the length read and the write tried again.
     """
     owned = [Job.id == job_id, Job.status.in_(list(statuses)), Job.attempts == attempt]
-    stored = session.execute(select(_history_length(session)).where(*owned)).scalar_one_or_none()
-    if stored is None:
+    known = stored is not None and stored <= len(records)
+    if known and _append_at(session, owned, records, int(stored or 0), values):
+        return True
+    length = session.execute(select(_history_length(session)).where(*owned)).scalar_one_or_none()
+    if length is None:
         return False
+    if not values and not records[int(length) :]:
+        return True  # nothing to append, and the attempt owns the job
+    return _append_at(session, owned, records, int(length), values)
+
+
+def _append_at(
+    session: Session,
+    owned: list[Any],
+    records: Sequence[dict[str, Any]],
+    stored: int,
+    values: dict[str, Any],
+) -> bool:
+    """Set ``values`` and append ``records[stored:]`` if the history holds ``stored`` records."""
     fields = dict(values)
-    tail = list(records[int(stored) :])
+    tail = list(records[stored:])
     if tail:
         fields["history"] = _appended(session, tail)
     if not fields:
-        return True  # nothing to append, and the attempt owns the job
+        fields["history"] = Job.history  # nothing to change: the row count says if it is owned
     stmt = (
         update(Job)
         .where(*owned, _history_length(session) == stored)
@@ -341,17 +425,20 @@ def record_iteration(
     history: Sequence[dict[str, Any]],
     progress: dict[str, Any],
     lease_s: float = 30.0,
+    stored: int | None = None,
 ) -> bool:
     """Append the new records of ``history`` (the attempt's iterations so far) to the stored
     history, store the live progress and renew the lease; False if the attempt no longer owns
-    the job."""
+    the job. ``stored``: how many records the attempt knows are stored (saves a read)."""
     now = utcnow()
     values = {
         "progress": progress,
         "updated_at": now,
         "lease_expires_at": now + timedelta(seconds=lease_s),
     }
-    return _append_history(session, job_id, attempt, history, [JobStatus.RUNNING.value], values)
+    return _append_history(
+        session, job_id, attempt, history, [JobStatus.RUNNING.value], values, stored
+    )
 
 
 def complete_history(

@@ -57,6 +57,13 @@ class Database:
         with self.readers() as session:
             yield session
 
+    @contextmanager
+    def autocommit(self) -> Iterator[Session]:
+        """A session whose every statement is its own transaction (no BEGIN/COMMIT round
+        trips), for writes that are each one conditional statement: a claim, a fenced update."""
+        with self.readers() as session:
+            yield session
+
 
 def _configure_sqlite(engine: Engine) -> None:
     @event.listens_for(engine, "connect")

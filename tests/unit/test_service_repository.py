@@ -338,3 +338,56 @@ def test_migration_0005_moves_the_history_out_of_stored_results(database: Databa
         text = repository.get_result_text(s, job_id, "alice")
     assert text is not None and text.result_json is not None
     assert json.loads(text.result_json)["history"] == history
+
+
+def test_an_outcome_is_stored_in_one_statement_only_when_the_history_length_is_known(
+    database: Database,
+) -> None:
+    job_id = _new(database)
+    records = [{"iteration": k} for k in range(1, 4)]
+    with database.autocommit() as s:
+        attempt = repository.claim_attempt(s, job_id, 3).attempt
+        # the attempt knows 0 records are stored, but one is: a write it saw fail went through
+        assert repository.record_iteration(s, job_id, attempt, records[:1], {}, stored=None)
+        assert repository.record_iteration(s, job_id, attempt, records[:2], {}, stored=1)
+        assert repository.record_iteration(s, job_id, attempt, records[:2], {}, stored=0)
+    assert _stored_history(database, job_id) == records[:2]  # never appended twice
+    outcome = {"to": "failed", "allowed_from": ["running"], "values": {"error_code": "x"}}
+    with database.autocommit() as s:
+        assert not repository.store_outcome(
+            s,
+            job_id,
+            attempt=attempt,
+            history=records,
+            stored=1,
+            unless_cancel_requested=True,
+            **outcome,  # type: ignore[arg-type]
+        )
+        assert repository.store_outcome(
+            s,
+            job_id,
+            attempt=attempt,
+            history=records,
+            stored=2,
+            unless_cancel_requested=True,
+            **outcome,  # type: ignore[arg-type]
+        )
+        job = repository.get_job(s, job_id)
+    assert job is not None and (job.status, job.error_code) == ("failed", "x")
+    assert _stored_history(database, job_id) == records
+
+
+def test_a_result_is_served_with_its_history_as_the_same_json_values(database: Database) -> None:
+    job_id = _new(database)
+    history = [{"iteration": 1, "cost": 1e-300, "note": "Δv ≈ 0"}]
+    result = {"status": "failed", "history": history, "x": [1.5, 2.5e-7, None, "é"]}
+    with database.session() as s:
+        attempt = repository.claim_attempt(s, job_id, 3).attempt
+        assert repository.record_iteration(s, job_id, attempt, history, {})
+        stored = repository.result_for_storage(result)
+        assert repository.transition(
+            s, job_id, to="failed", allowed_from=["running"], values={"result": stored}
+        )
+        text = repository.get_result_text(s, job_id, "alice")
+    assert text is not None and text.result_json is not None
+    assert json.loads(text.result_json) == result
