@@ -410,3 +410,11 @@ def test_ctrl_c_during_a_solve_is_exit_130_with_one_line(tmp_path: Path) -> None
     after = [line for line in err.splitlines() if not line.startswith("iter ")]
     assert process.returncode == 130, err
     assert after == ["error: interrupted"] and out == ""
+
+
+def test_a_breaking_solve_is_a_failed_result_without_numpy_warnings(trajopt: Trajopt) -> None:
+    # 3 nodes: the linearization breaks down (a speed from an energy above the potential's)
+    run = trajopt("solve", "rlv-min-heat-load", "--nodes", "3", "-q")
+    assert run.code == 1 and run.out.startswith("status: failed")
+    assert "numerical_error" in run.out
+    assert "Warning" not in run.err and "Traceback" not in run.err, run.err

@@ -10,6 +10,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from app.schemas import ProblemDocument
 from app.schemas.result import json_ready
 from worker.solver.finite import non_finite_entries
@@ -199,7 +201,10 @@ def solve_problem(
     if on_phase is not None:
         on_phase("optimizing")
     scp_start = time.perf_counter()
-    outcome = METHODS[method].run(model, problem.method, forward, should_stop)
+    # a non-physical iterate's NaN or overflow is found and reported in the result (diverged,
+    # numerical_error with where), not printed as a numpy warning on the caller's stderr
+    with np.errstate(all="ignore"):
+        outcome = METHODS[method].run(model, problem.method, forward, should_stop)
     wall = time.perf_counter() - scp_start
     status = _STATUS[outcome.status]
     failure = (
