@@ -345,16 +345,16 @@ class StreamHub:
             self._wake.clear()
             self._ended.clear()
             started = time.monotonic()
-            noticed = not (self._all_dirty or started - last_full >= interval)
-            if not noticed:
+            full = self._all_dirty or started - last_full >= interval
+            if full:
                 due: Iterable[str] = list(self._watches)
                 last_full = started
-            else:
+            else:  # only the jobs a notice named
                 due = [job_id for job_id in self._dirty if job_id in self._watches]
             self._dirty.clear()
             self._all_dirty = False
             if due:
-                await self._refresh(due, likely_changed=noticed)
+                await self._refresh(due, likely_changed=not full)
                 with contextlib.suppress(TimeoutError):  # paced, unless an attempt ends
                     await asyncio.wait_for(self._ended.wait(), self._pace())
 

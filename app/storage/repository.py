@@ -142,7 +142,7 @@ def _result_with_history(session: Session) -> Any:
 
 def result_for_storage(result: dict[str, Any] | None) -> dict[str, Any] | None:
     """The result document as stored: its history is kept once, in ``jobs.history``, so the
-    document keeps only an empty ``history`` (where it had one) for :func:`with_history`."""
+    document keeps only an empty ``history`` (where it had one) for :func:`get_result_text`."""
     if result is None or "history" not in result:
         return result
     return {**result, "history": []}
@@ -236,16 +236,7 @@ def store_outcome(
     conditions, fields = _transition_parts(
         job_id, to, allowed_from, attempt, values, unless_cancel_requested
     )
-    tail = list(history[stored:])
-    if tail:
-        fields["history"] = _appended(session, tail)
-    stmt = (
-        update(Job)
-        .where(*conditions, _history_length(session) == stored)
-        .values(**fields)
-        .execution_options(**_NO_SYNC)
-    )
-    return _rowcount(session.execute(stmt)) == 1
+    return _append_at(session, conditions, history, stored, fields)
 
 
 class ClaimState(StrEnum):

@@ -57,12 +57,9 @@ class Database:
         with self.readers() as session:
             yield session
 
-    @contextmanager
-    def autocommit(self) -> Iterator[Session]:
-        """A session whose every statement is its own transaction (no BEGIN/COMMIT round
-        trips), for writes that are each one conditional statement: a claim, a fenced update."""
-        with self.readers() as session:
-            yield session
+    autocommit = reader
+    """The same autocommit session for writes that are each one conditional statement (a claim,
+    a fenced update): every statement is its own transaction, no BEGIN/COMMIT round trips."""
 
 
 def _configure_sqlite(engine: Engine) -> None:
