@@ -142,7 +142,7 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
         "no such scenario",
         {
             "code": "scenario_not_found",
-            "message": "unknown scenario 'rlv-min-heat-lod'; did you mean 'rlv-min-heat-load'?",
+            "message": "unknown scenario 'rlv-min-heatload'; did you mean 'rlv-min-heat-load'?",
         },
     ),
     "job_not_finished": _error(

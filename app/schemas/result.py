@@ -297,6 +297,20 @@ class ControlPeaks(_Record):
     bank_rate_deg_s: PathPeak | None = Field(
         None, description="|bank rate|, deg/s (only when the problem limits it)."
     )
+    alpha_max_deg: PathPeak | None = Field(
+        None,
+        description="Only with an optimized angle of attack: the largest alpha against its upper "
+        "bound, the ratio the share of the range's half-width used from its middle.",
+    )
+    alpha_min_deg: PathPeak | None = Field(
+        None,
+        description="Only with an optimized angle of attack: the smallest alpha (in `max`) "
+        "against its lower bound, the ratio as for alpha_max_deg.",
+    )
+    alpha_rate_deg_s: PathPeak | None = Field(
+        None,
+        description="|alpha rate|, deg/s (an optimized angle of attack with a rate bound).",
+    )
 
 
 class ZoneClearance(_Record):

@@ -240,9 +240,9 @@ def test_a_key_made_in_api_keys_mode_can_be_revoked_in_single_user_mode(trajopt:
 def test_a_misspelled_scenario_gets_a_suggestion_and_no_quotes_around_the_message(
     trajopt: Trajopt,
 ) -> None:
-    run = trajopt("solve", "rlv-min-heat-lod")
+    run = trajopt("solve", "rlv-min-heatload")
     err = assert_stderr(run, 2, "did you mean 'rlv-min-heat-load'?", "`trajopt scenarios`")
-    assert err.startswith("error: unknown scenario 'rlv-min-heat-lod'")
+    assert err.startswith("error: unknown scenario 'rlv-min-heatload'")
     assert '"' not in err
 
 

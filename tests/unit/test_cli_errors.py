@@ -140,12 +140,12 @@ def test_secret_problem() -> None:
 
 def test_an_unknown_scenario_is_a_key_error_with_a_suggestion_and_no_quotes() -> None:
     with pytest.raises(KeyError) as caught:  # the type every caller catches
-        get_scenario("rlv-min-heat-lod")
+        get_scenario("rlv-min-heatload")
     exc = caught.value
     assert isinstance(exc, UnknownScenarioError)
     assert exc.suggestions == ["rlv-min-heat-load"]
     assert str(exc) == str(exc.args[0])  # no KeyError repr quotes
-    assert str(exc) == "unknown scenario 'rlv-min-heat-lod'; did you mean 'rlv-min-heat-load'?"
+    assert str(exc) == "unknown scenario 'rlv-min-heatload'; did you mean 'rlv-min-heat-load'?"
     cli = unknown_scenario_message(exc)
     assert "did you mean 'rlv-min-heat-load'?" in cli and "`trajopt scenarios`" in cli
 
@@ -178,7 +178,7 @@ def test_problem_sources_that_cannot_be_read(
     monkeypatch.chdir(tmp_path)
     assert _refusal("missing.json") == "no such file: missing.json"
     assert _refusal("sub/problem") == "no such file: sub/problem"
-    assert "unknown scenario 'rlv-min-heat-lod'" in _refusal("rlv-min-heat-lod")
+    assert "unknown scenario 'rlv-min-heatload'" in _refusal("rlv-min-heatload")
     (tmp_path / "folder").mkdir()
     assert _refusal("folder") == "folder is a directory, not a problem file"
     (tmp_path / "broken.json").write_text('{\n  "vehicle": {,\n}', encoding="utf-8")

@@ -79,6 +79,12 @@ class EntryProblem:
     no_fly_zones: list[CircleZone] = field(default_factory=list)
     waypoints: list[CircleZone] = field(default_factory=list)
     alpha_optimized: bool = False
+    alpha_range: tuple[float, float] | None = None
+    """Bounds of an optimized angle of attack (radians); None when it is scheduled."""
+    alpha_rate_max: float | None = None
+    """Bound on |d alpha/dt| of an optimized angle of attack (rad per nondimensional time)."""
+    initial_alpha: float | None = None
+    """Optimized angle of attack at the initial time (radians); None when free."""
 
     def radius(self, altitude_m: float) -> float:
         """Nondimensional radius of an altitude in metres."""
@@ -228,4 +234,22 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         no_fly_zones=zones,
         waypoints=waypoints,
         alpha_optimized=schedule is None,
+        **_optimized_alpha(doc, scales),
     )
+
+
+def _optimized_alpha(doc: ProblemDocument, scales: Scales) -> dict[str, Any]:
+    """The bounds, rate bound and initial value of an optimized angle of attack (radians,
+    radians per nondimensional time); empty for a scheduled one. The rate bound is the
+    angle-of-attack law's own, else ``control_limits.alpha_rate_max_deg_s``."""
+    spec = doc.vehicle.angle_of_attack
+    if spec.mode != "optimized":
+        return {}
+    rate = spec.rate_max_deg_s
+    if rate is None:
+        rate = doc.control_limits.alpha_rate_max_deg_s
+    return {
+        "alpha_range": (math.radians(spec.min_deg), math.radians(spec.max_deg)),
+        "alpha_rate_max": math.radians(rate) * scales.time_s if rate is not None else None,
+        "initial_alpha": math.radians(spec.initial_deg) if spec.initial_deg is not None else None,
+    }

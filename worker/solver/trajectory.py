@@ -7,7 +7,7 @@ the result writes it, so it imports nothing of the solver.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
@@ -26,6 +26,20 @@ TIME_STATE_NAMES = (
 columns of ``OptimizedTrajectory.y`` and the states that can carry a terminal condition."""
 
 
+class AttitudePath(Protocol):
+    """Bank and angle of attack as continuous functions of time, as a method represents them
+    between its nodes (e.g. a polynomial per mesh interval); times nondimensional from the
+    start."""
+
+    def at(self, t: Array) -> tuple[Array, Array]:
+        """(bank in radians, angle of attack in degrees) at times ``t``."""
+        ...
+
+    def rates_at(self, t: Array) -> tuple[Array, Array]:
+        """(d bank/dt, d alpha/dt) at times ``t``, radians per nondimensional time."""
+        ...
+
+
 @dataclass
 class OptimizedTrajectory:
     """The optimizer's nodes in time-form states (nondimensional) with their grid and bank."""
@@ -37,12 +51,17 @@ class OptimizedTrajectory:
     bank: Array  # (K,) radians
     alpha_deg: Array | None = None  # (K,) when alpha is a decision variable
     bank_rate: Array | None = None  # (K,) d(bank)/dt at the nodes (time grid), first-order hold
+    attitude: AttitudePath | None = None
+    """Bank and angle of attack between the nodes when the method represents them continuously
+    (both states of its model): verification flies this path, not an interpolation of nodes."""
 
 
 def bank_profile_at(traj: OptimizedTrajectory, s: Array) -> Array:
     """``bank_profile`` at many grid values at once (the same profile, vectorized)."""
     grid, bank = traj.grid, traj.bank
     s = np.asarray(s, dtype=float)
+    if traj.attitude is not None:
+        return traj.attitude.at(s)[0]
     if traj.bank_rate is None or traj.grid_kind != "time":
         return np.interp(s, grid, bank)
     k = np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2)
@@ -55,6 +74,8 @@ def bank_profile_at(traj: OptimizedTrajectory, s: Array) -> Array:
 def bank_rate_at(traj: OptimizedTrajectory, t: Array, bank: Array) -> Array:
     """The flown bank rate at nondimensional times ``t`` (``bank`` the flown bank there): the
     first-order-hold rate where the trajectory carries one, else the slope of ``bank``."""
+    if traj.attitude is not None:
+        return traj.attitude.rates_at(t)[0]
     if traj.bank_rate is not None and traj.grid_kind == "time":
         return np.interp(t, traj.grid, traj.bank_rate)
     return np.gradient(bank, t) if t.size > 1 else np.zeros_like(t)

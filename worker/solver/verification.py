@@ -189,6 +189,18 @@ def _rhs(
 
         return compiled
     u = np.zeros((1, 2))
+    attitude = traj.attitude
+    if attitude is not None:  # bank and alpha as the method represents them between nodes
+        at = np.zeros(1)
+
+        def flown(t: float, y: Array) -> Array:
+            poll()
+            at[0] = t
+            sigma, alpha = attitude.at(at)
+            u[0, 0], u[0, 1] = math.cos(sigma[0]), math.sin(sigma[0])
+            return time_dynamics(y[None, :], u, forces, omega, alpha, jacobians=False).f[0]
+
+        return flown
 
     def python(t: float, y: Array) -> Array:
         poll()
@@ -343,7 +355,9 @@ def verify(
     y_fine = sol.sol(t_fine).T
     s_fine = _energy(y_fine.T) if traj.grid_kind == "energy" else t_fine
     alpha = None
-    if traj.alpha_deg is not None:
+    if traj.attitude is not None:
+        alpha = traj.attitude.at(t_fine)[1]
+    elif traj.alpha_deg is not None:
         alpha = np.interp(s_fine, traj.grid, traj.alpha_deg)
     ft = problem.forces.terms(y_fine[:, 0], y_fine[:, 3], alpha)
     pv = path_values(problem.forces, problem.heat_model, y_fine[:, 0], y_fine[:, 3], ft)
@@ -435,6 +449,7 @@ def _control_peaks(
         rate = np.abs(bank_rate_at(traj, t_fine, bank))
         per_s = math.degrees(1.0) / sc.time_s
         checks.append(("bank_rate_deg_s", rate * per_s, problem.bank_rate_max * per_s, 0.0))
+    checks.extend(_alpha_checks(problem, traj, t_fine))
     peaks: dict[str, Any] = {}
     ok = True
     for key, values, limit, middle in checks:
@@ -451,3 +466,21 @@ def _control_peaks(
             "within": within,
         }
     return peaks, ok
+
+
+def _alpha_checks(
+    problem: EntryProblem, traj: OptimizedTrajectory, t_fine: Array
+) -> list[tuple[str, Array, float, float]]:
+    """The flown angle of attack against an optimized one's bounds (both sides, as the bank's
+    asymmetric range) and its rate against the rate bound, on the dense grid (degrees)."""
+    if traj.attitude is None or problem.alpha_range is None:
+        return []
+    _, alpha = traj.attitude.at(t_fine)
+    low, high = (math.degrees(a) for a in problem.alpha_range)
+    middle = 0.5 * (low + high)
+    checks = [("alpha_max_deg", alpha, high, middle), ("alpha_min_deg", alpha, low, middle)]
+    if problem.alpha_rate_max is not None:
+        per_s = math.degrees(1.0) / problem.scales.time_s
+        rate = np.abs(traj.attitude.rates_at(t_fine)[1]) * per_s
+        checks.append(("alpha_rate_deg_s", rate, problem.alpha_rate_max * per_s, 0.0))
+    return checks

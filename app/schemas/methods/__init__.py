@@ -17,8 +17,13 @@ from app.schemas.base import untagged_errors
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 from app.schemas.methods.energy_scp import EnergyScpOptions, EnergyStopTolerance
 from app.schemas.methods.foh_ptr import FohPtrOptions, FohStopTolerance
+from app.schemas.methods.hp_scp import HpScpOptions, HpStopTolerance
 
-METHOD_OPTION_TYPES: Final[tuple[type[ScpRunOptions], ...]] = (EnergyScpOptions, FohPtrOptions)
+METHOD_OPTION_TYPES: Final[tuple[type[ScpRunOptions], ...]] = (
+    EnergyScpOptions,
+    FohPtrOptions,
+    HpScpOptions,
+)
 """Every method's options model: the one place a method is registered."""
 
 DEFAULT_METHOD: Final[str] = "energy-scp"
@@ -71,6 +76,8 @@ __all__ = [
     "EnergyStopTolerance",
     "FohPtrOptions",
     "FohStopTolerance",
+    "HpScpOptions",
+    "HpStopTolerance",
     "MethodSpec",
     "ScpRunOptions",
     "default_method_options",

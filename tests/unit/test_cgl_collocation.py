@@ -1,0 +1,125 @@
+"""The multi-interval CGL collocation rows (integral form), the polynomial attitude path and the
+mesh refinement helpers of the pseudospectral method.
+
+Tolerances: the collocation and interpolation are exact for polynomials of their degree, so the
+checks hold to rounding (1e-12 relative to values of order one, with the integration and
+differentiation matrices' conditioning of a few hundred at these degrees).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from worker.solver.transcription.cgl import ChebyshevMesh
+from worker.solver.transcription.cgl_collocation import (
+    CollocationPattern,
+    PolynomialAttitude,
+    integrate_rates,
+)
+from worker.solver.transcription.cgl_mesh_refine import carry, interval_errors, split
+
+EXACT = 1e-12
+
+
+def _mesh() -> ChebyshevMesh:
+    return ChebyshevMesh(boundaries=(0.0, 0.2, 0.55, 1.0), degrees=(3, 5, 4))
+
+
+def test_defects_vanish_on_a_polynomial_solution() -> None:
+    """z(tau) = tau^3 + 2 tau, F = z' (degree 2 <= every interval's degree): zero residuals."""
+    mesh = _mesh()
+    pattern = CollocationPattern.of(mesh, 1, 0)
+    tau = mesh.points(0.0, 1.0)
+    z = (tau**3 + 2.0 * tau)[:, None]
+    F = (3.0 * tau**2 + 2.0)[:, None]
+    assert np.max(np.abs(pattern.defects(z, F))) < EXACT
+    # a wrong rate at one point leaves a residual in its interval's rows
+    F_bad = F.copy()
+    F_bad[5] += 1.0
+    assert np.max(np.abs(pattern.defects(z, F_bad))) > 1e-3
+
+
+def test_one_row_block_per_new_point() -> None:
+    """The integral form collocates each point but the first once: K - 1 row blocks."""
+    mesh = _mesh()
+    pattern = CollocationPattern.of(mesh, 8, 2)
+    z = np.zeros((mesh.num_points, 8))
+    assert pattern.defects(z, z).shape == (mesh.num_points - 1, 8)
+    assert pattern.num_points == mesh.num_points == 13
+
+
+def test_integrate_rates_solves_the_rows() -> None:
+    mesh = _mesh()
+    pattern = CollocationPattern.of(mesh, 2, 0)
+    rng = np.random.default_rng(3)
+    F = rng.normal(size=(mesh.num_points, 2))
+    z = integrate_rates(pattern, np.array([1.0, -2.0]), F)
+    assert np.max(np.abs(pattern.defects(z, F))) < EXACT
+    assert np.allclose(z[0], [1.0, -2.0])
+
+
+def test_attitude_interpolates_and_differentiates_exactly() -> None:
+    """Bank and alpha quadratic in time: the path returns their values and exact rates."""
+    mesh = _mesh()
+    tf = 2.5
+    t = mesh.points(0.0, tf)
+    bank = 0.3 + 0.1 * t - 0.05 * t**2
+    alpha = np.radians(20.0) + 0.02 * t**2
+    path = PolynomialAttitude(mesh, tf, bank, alpha)
+    s = np.linspace(0.0, tf, 37)
+    b, a_deg = path.at(s)
+    assert np.allclose(b, 0.3 + 0.1 * s - 0.05 * s**2, atol=EXACT)
+    assert np.allclose(np.radians(a_deg), np.radians(20.0) + 0.02 * s**2, atol=EXACT)
+    db, da = path.rates_at(s)
+    assert np.allclose(db, 0.1 - 0.1 * s, atol=1e-11)
+    assert np.allclose(da, 0.04 * s, atol=1e-11)
+
+
+def test_split_at_the_middle_or_at_an_inner_peak_within_budget() -> None:
+    mesh = _mesh()
+    marked = np.array([True, False, True])
+    peaks = np.array([np.nan, np.nan, 0.7])
+    new = split(mesh, marked, peaks, max_points=100)
+    assert new.boundaries == pytest.approx((0.0, 0.1, 0.2, 0.55, 0.55 + 0.7 * 0.45, 1.0))
+    assert new.degrees == (3, 3, 5, 4, 4)
+    # a budget for one split only: the first marked interval is split, the second kept
+    one = split(mesh, marked, peaks, max_points=mesh.num_points + 3)
+    assert one.num_intervals == 4 and one.num_points == mesh.num_points + 3
+    # a peak at the edge of its interval splits at the middle instead
+    edge = split(mesh, np.array([False, True, False]), np.array([np.nan, 0.05, np.nan]), 100)
+    assert edge.boundaries[2] == pytest.approx(0.375)
+
+
+def test_carry_keeps_a_polynomial_exactly() -> None:
+    mesh = _mesh()
+    new = split(mesh, np.array([True, True, True]), np.full(3, np.nan), 100)
+    tf = 3.0
+    f = lambda t: 1.0 - t + 0.25 * t**3  # noqa: E731  degree 3 = the smallest degree
+    moved = carry(mesh, new, tf, f(mesh.points(0.0, tf)))
+    assert np.allclose(moved, f(new.points(0.0, tf)), atol=EXACT)
+
+
+def test_interval_errors_measure_each_interval_from_its_first_point() -> None:
+    """y' = 1 from each interval's first point: a shared boundary point moved by 0.3 shows as the
+    end error of the interval it ends and of the one it starts (flown from it, that one ends
+    0.3 away from its unmoved last point), not elsewhere (integration tolerance 1e-9)."""
+    mesh = _mesh()
+    tf = 1.0
+    t = mesh.points(0.0, tf)
+    z = t[:, None].copy()
+    units = np.array([2.0])
+
+    def rates(time: np.ndarray, y: np.ndarray, attitude: np.ndarray) -> np.ndarray:
+        return np.ones_like(y)
+
+    def attitude(time: np.ndarray) -> np.ndarray:
+        return np.zeros((time.size, 2))
+
+    assert np.max(interval_errors(mesh, tf, z, rates, attitude, units, 1)) < 1e-8
+    last_of_second = mesh.interval_slices()[1].stop - 1
+    z[last_of_second] += 0.3
+    errors = interval_errors(mesh, tf, z, rates, attitude, units, 1)
+    assert errors[1] == pytest.approx(0.15, abs=1e-8)
+    assert errors[2] == pytest.approx(0.15, abs=1e-8)
+    assert errors[0] < 1e-8

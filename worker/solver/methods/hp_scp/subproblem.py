@@ -1,0 +1,348 @@
+"""Paper 003's convex subproblem about a reference: the linearized CGL collocation rows with an
+L1 virtual control, the state, control and rate bounds, the linearized path limits and no-fly
+zones with L1 slacks, the terminal conditions with an L1 buffer, the objective's linear terms and
+a quadratic trust-region penalty on every scaled change (paper 003 eqs. 52-60 in the soft trust
+region form; the penalty weight is the globalization's).
+
+Variables, all scaled: point changes dz / u_z (K, 8), rate changes dw / u_w (K, 2), the final
+time's change dt_f / u_t, then the nonnegative virtual controls nu+ and nu- (K-1, 8), path
+slacks (L, K), zone slacks (Z, K) and terminal buffers (one per fixed condition).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from worker.solver.conic import ConeProblem, ConeSpec
+from worker.solver.methods.hp_scp.linearization import PHI, THETA, HpIterate, Linearization
+from worker.solver.models.alpha_bank_state import ALPHA, SIGMA
+from worker.solver.problem import EntryProblem
+from worker.solver.transcription.terminal import TerminalRow
+
+Array = np.ndarray
+NZ, NW = 8, 2
+R, V = 0, 3
+
+
+@dataclass(frozen=True)
+class Units:
+    """Units of the scaled changes: states (8,), rates (2,), final time (nondimensional)."""
+
+    z: Array
+    w: Array
+    t: float
+
+
+@dataclass(frozen=True)
+class Columns:
+    """First column of each variable block and the total count."""
+
+    K: int
+    L: int
+    Z: int
+    T: int
+
+    @property
+    def w(self) -> int:
+        return self.K * NZ
+
+    @property
+    def t(self) -> int:
+        return self.K * (NZ + NW)
+
+    @property
+    def nu_plus(self) -> int:
+        return self.t + 1
+
+    @property
+    def nu_minus(self) -> int:
+        return self.nu_plus + (self.K - 1) * NZ
+
+    @property
+    def path(self) -> int:
+        return self.nu_minus + (self.K - 1) * NZ
+
+    @property
+    def zone(self) -> int:
+        return self.path + self.L * self.K
+
+    @property
+    def terminal(self) -> int:
+        return self.zone + self.Z * self.K
+
+    @property
+    def steps(self) -> int:
+        """Number of step columns (states, rates, final time): the trust-penalized ones."""
+        return self.t + 1
+
+    @property
+    def n(self) -> int:
+        return self.terminal + self.T
+
+    def z(self, k: Array | int, a: Array | int) -> Array:
+        return np.asarray(k) * NZ + np.asarray(a)
+
+    def wcol(self, k: Array | int, c: Array | int) -> Array:
+        return self.w + np.asarray(k) * NW + np.asarray(c)
+
+
+@dataclass
+class ObjectiveWeights:
+    """Linear cost of the step columns: on the final time and on the last point's states (per
+    unit of the scaled change), plus the constant part on the reference."""
+
+    tf: float
+    final: Array  # (8,) per unit of the nondimensional final state
+
+
+class _Rows:
+    """COO triplets and right-hand sides of one cone block."""
+
+    def __init__(self) -> None:
+        self.r: list[Array] = []
+        self.c: list[Array] = []
+        self.v: list[Array] = []
+        self.b: list[Array] = []
+        self.count = 0
+
+    def add(self, rows: Array, cols: Array, vals: Array, rhs: Array) -> None:
+        """Entries at local rows ``rows`` (0-based in this call's block of ``len(rhs)`` rows)."""
+        self.r.append(np.asarray(rows, dtype=np.int64).ravel() + self.count)
+        self.c.append(np.asarray(cols, dtype=np.int64).ravel())
+        self.v.append(np.asarray(vals, dtype=float).ravel())
+        rhs = np.atleast_1d(np.asarray(rhs, dtype=float))
+        self.b.append(rhs)
+        self.count += rhs.size
+
+
+def build(
+    problem: EntryProblem,
+    ref: HpIterate,
+    lin: Linearization,
+    units: Units,
+    terminal: list[TerminalRow],
+    objective: ObjectiveWeights,
+    *,
+    weight_virtual: float,
+    weight_trust: float,
+    tf_min: float,
+    box: Array | None = None,
+    box_rates: float = 0.0,
+    box_tf: float = 0.0,
+    hold_time: bool = False,
+    rate_weight: float = 0.0,
+) -> tuple[ConeProblem, Columns]:
+    """The subproblem about ``ref`` (see the module docstring)."""
+    pat = ref.pattern
+    K = pat.num_points
+    soft = [t for t in terminal if t.kind == "soft"]
+    cols = Columns(K, lin.path.g.shape[0], lin.zone_c.shape[0], len(soft))
+    uz, uw, ut = units.z, units.w, units.t
+    eq, ineq = _Rows(), _Rows()
+    A, B, S = lin.dyn.A, lin.dyn.B, lin.dyn.S
+    assert A is not None and B is not None
+    M = K - 1
+    # collocation rows (m, a): dz_i - dz_p - sum_j c_ij (A_j dz_j + B_j dw_j + S_j dtf) + nu = -d
+    m_of_pair = pat.pair_row - 1
+    a_idx = np.arange(NZ)
+    rows_a = m_of_pair[:, None, None] * NZ + a_idx[None, :, None] + 0 * a_idx[None, None, :]
+    cols_a = cols.z(pat.pair_col[:, None, None], a_idx[None, None, :]) + 0 * a_idx[None, :, None]
+    vals_a = -pat.coef[:, None, None] * A[pat.pair_col] * (uz[None, None, :] / uz[None, :, None])
+    c_idx = np.arange(NW)
+    rows_b = m_of_pair[:, None, None] * NZ + a_idx[None, :, None] + 0 * c_idx[None, None, :]
+    cols_b = cols.wcol(pat.pair_col[:, None, None], c_idx[None, None, :]) + 0 * a_idx[None, :, None]
+    vals_b = -pat.coef[:, None, None] * B[pat.pair_col] * (uw[None, None, :] / uz[None, :, None])
+    s_sum = np.zeros((K, NZ))
+    np.add.at(s_sum, pat.pair_row, pat.coef[:, None] * S[pat.pair_col])
+    m_all = np.arange(M)
+    rows_id = (m_all[:, None] * NZ + a_idx[None, :]).ravel()
+    eq.add(
+        np.concatenate(
+            [
+                rows_a.ravel(),
+                rows_b.ravel(),
+                rows_id,
+                rows_id,
+                rows_id,
+                rows_id,
+                rows_id,
+            ]
+        ),
+        np.concatenate(
+            [
+                cols_a.ravel(),
+                cols_b.ravel(),
+                cols.z(m_all[:, None] + 1, a_idx[None, :]).ravel(),
+                cols.z(pat.start[:, None], a_idx[None, :]).ravel(),
+                np.full(M * NZ, cols.t),
+                cols.nu_plus + rows_id,
+                cols.nu_minus + rows_id,
+            ]
+        ),
+        np.concatenate(
+            [
+                vals_a.ravel(),
+                vals_b.ravel(),
+                np.ones(M * NZ),
+                -np.ones(M * NZ),
+                (-s_sum[1:] * (ut / uz[None, :])).ravel(),
+                np.ones(M * NZ),
+                -np.ones(M * NZ),
+            ]
+        ),
+        (-lin.defects / uz[None, :]).ravel(),
+    )
+    # the initial point: the point-mass states fixed, bank and alpha when given
+    fixed0 = list(range(6))
+    values0 = list(problem.y0)
+    if problem.initial_bank is not None:
+        fixed0.append(SIGMA)
+        values0.append(problem.initial_bank)
+    if problem.initial_alpha is not None:
+        fixed0.append(ALPHA)
+        values0.append(problem.initial_alpha)
+    f0 = np.asarray(fixed0)
+    eq.add(
+        np.arange(f0.size),
+        cols.z(0, f0),
+        np.ones(f0.size),
+        (np.asarray(values0) - ref.z[0, f0]) / uz[f0],
+    )
+    # bounds on bank and alpha at every point, then on their rates
+    k_all = np.arange(K)
+    bounds = [(SIGMA, problem.bank_min, problem.bank_max)]
+    if problem.alpha_range is not None:
+        bounds.append((ALPHA, *problem.alpha_range))
+    for a, lo, hi in bounds:
+        ineq.add(
+            np.concatenate([k_all, K + k_all]),
+            np.concatenate([cols.z(k_all, a), cols.z(k_all, a)]),
+            np.concatenate([np.full(K, uz[a]), np.full(K, -uz[a])]),
+            np.concatenate([hi - ref.z[:, a], ref.z[:, a] - lo]),
+        )
+    for c, limit in ((0, problem.bank_rate_max), (1, problem.alpha_rate_max)):
+        if limit is None:
+            continue
+        ineq.add(
+            np.concatenate([k_all, K + k_all]),
+            np.concatenate([cols.wcol(k_all, c), cols.wcol(k_all, c)]),
+            np.concatenate([np.full(K, uw[c]), np.full(K, -uw[c])]),
+            np.concatenate([limit - ref.w[:, c], limit + ref.w[:, c]]),
+        )
+    # path limits: g + g_r dr + g_v dV + g_a dalpha - slack <= 0
+    path = lin.path
+    for i in range(cols.L):
+        ineq.add(
+            np.repeat(k_all, 4),
+            np.column_stack(
+                [
+                    cols.z(k_all, R),
+                    cols.z(k_all, V),
+                    cols.z(k_all, ALPHA),
+                    cols.path + i * K + k_all,
+                ]
+            ).ravel(),
+            np.column_stack(
+                [path.g_r[i] * uz[R], path.g_v[i] * uz[V], path.g_a[i] * uz[ALPHA], -np.ones(K)]
+            ).ravel(),
+            -path.g[i],
+        )
+    # no-fly zones: distance - radius + gradient step + slack >= 0
+    for i in range(cols.Z):
+        ineq.add(
+            np.repeat(k_all, 3),
+            np.column_stack(
+                [cols.z(k_all, PHI), cols.z(k_all, THETA), cols.zone + i * K + k_all]
+            ).ravel(),
+            np.column_stack(
+                [-lin.zone_lat[i] * uz[PHI], -lin.zone_lon[i] * uz[THETA], -np.ones(K)]
+            ).ravel(),
+            lin.zone_c[i],
+        )
+    # terminal conditions on the last point: fixed ones with an L1 buffer, ranges as bounds
+    last = K - 1
+    for j, row in enumerate(soft):
+        off = row.value - ref.z[last, row.state]
+        ineq.add(
+            np.array([0, 0, 1, 1]),
+            np.array([cols.z(last, row.state), cols.terminal + j] * 2),
+            np.array([1.0, -1.0, -1.0, -1.0]),  # |dz / u - off / u| <= buffer
+            np.array([off / uz[row.state], -off / uz[row.state]]),
+        )
+    for row in terminal:
+        if row.kind != "range":
+            continue
+        ineq.add(
+            np.array([0, 1]),
+            np.array([cols.z(last, row.state)] * 2),
+            np.array([uz[row.state], -uz[row.state]]),
+            np.array([row.hi - ref.z[last, row.state], ref.z[last, row.state] - row.lo]),
+        )
+        # fixed hard rows do not occur: terminal_rows is asked for virtual buffers
+    ineq.add(np.array([0]), np.array([cols.t]), np.array([-ut]), np.array([ref.tf - tf_min]))
+    if hold_time:  # the final time held at the reference's
+        ineq.add(np.array([0, 1]), np.array([cols.t, cols.t]), np.array([ut, -ut]), np.zeros(2))
+    if box is not None:  # the hard trust region: |dz_j| <= box_j at every point, rates, t_f
+        radius = np.concatenate(
+            [np.tile(box / uz, K), np.full(K * NW, box_rates / uw[0]), [box_tf / ut]]
+        )
+        idx = np.arange(cols.steps)
+        ineq.add(
+            np.concatenate([idx, idx.size + idx]),
+            np.concatenate([idx, idx]),
+            np.concatenate([np.ones(idx.size), -np.ones(idx.size)]),
+            np.concatenate([radius, radius]),
+        )
+    # every slack nonnegative
+    first_slack = cols.nu_plus
+    n_slack = cols.n - first_slack
+    ineq.add(
+        np.arange(n_slack),
+        first_slack + np.arange(n_slack),
+        -np.ones(n_slack),
+        np.zeros(n_slack),
+    )
+    n_eq = eq.count
+    rows = np.concatenate(eq.r + [r + n_eq for r in ineq.r])
+    cols_all = np.concatenate(eq.c + ineq.c)
+    vals = np.concatenate(eq.v + ineq.v)
+    b = np.concatenate(eq.b + ineq.b)
+    A_mat = sp.csc_matrix((vals, (rows, cols_all)), shape=(b.size, cols.n))
+    q = np.zeros(cols.n)
+    q[cols.t] = objective.tf * ut
+    q[cols.z(last, a_idx)] += objective.final * uz
+    q[first_slack : cols.terminal] = weight_virtual
+    # a fixed condition's buffer is virtual control; a soft condition costs its own weight
+    q[cols.terminal :] = [weight_virtual if t.virtual else t.weight for t in soft]
+    diag = np.zeros(cols.n)
+    diag[: cols.steps] = weight_trust
+    if rate_weight > 0.0:  # rate_weight * mean((w / unit)^2): a quadratic in the rate changes
+        per = rate_weight / K
+        wcols = cols.wcol(k_all[:, None], c_idx[None, :])
+        diag[wcols] += 2.0 * per
+        q[wcols] += 2.0 * per * ref.w / uw[None, :]
+    P = sp.diags(diag, format="csc")
+    return ConeProblem(P, q, A_mat, b, ConeSpec(n_eq, b.size - n_eq)), cols
+
+
+def step_of(x: Array, cols: Columns, units: Units) -> tuple[Array, Array, float]:
+    """(dz (K, 8), dw (K, 2), dt_f) in nondimensional units from a solution."""
+    K = cols.K
+    dz = x[: K * NZ].reshape(K, NZ) * units.z
+    dw = x[cols.w : cols.t].reshape(K, NW) * units.w
+    return dz, dw, float(x[cols.t] * units.t)
+
+
+def virtual_sums(x: Array, cols: Columns) -> tuple[float, float]:
+    """(sum of the virtual controls, largest of all slacks) of a solution (scaled)."""
+    slack = x[cols.nu_plus :]
+    return float(np.sum(slack)), float(np.max(np.abs(slack))) if slack.size else 0.0
+
+
+def radians_per_s(problem: EntryProblem, deg_s: float) -> float:
+    """``deg_s`` in radians per nondimensional time."""
+    return math.radians(deg_s) * problem.scales.time_s
