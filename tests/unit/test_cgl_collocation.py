@@ -123,3 +123,37 @@ def test_interval_errors_measure_each_interval_from_its_first_point() -> None:
     assert errors[1] == pytest.approx(0.15, abs=1e-8)
     assert errors[2] == pytest.approx(0.15, abs=1e-8)
     assert errors[0] < 1e-8
+
+
+def test_a_bank_rate_peak_marks_its_interval_and_where_it_peaks() -> None:
+    """A 30 deg bank bump at one point inside interval 2 of 5 (46.9 s of a 100 s flight, its
+    neighbours 2.8 s away at 0: the interval's polynomial turns at about 10 deg/s against the
+    scenario's 5 deg/s) at a quiet flight condition (80 km, 2 km/s: every path limit far away):
+    only interval 2 shows an excess, and it peaks next to the bump."""
+    import copy
+    import math
+
+    from app.schemas import ProblemDocument
+    from worker.solver.methods.hp_scp.linearization import HpIterate
+    from worker.solver.methods.hp_scp.mesh_update import between_points_excess
+    from worker.solver.problem import build_problem
+    from worker.solver.scenarios import get_scenario
+
+    problem = build_problem(
+        ProblemDocument.model_validate(copy.deepcopy(get_scenario("rlv-min-time-hp").problem))
+    )
+    sc = problem.scales
+    mesh = ChebyshevMesh.uniform(5, 10)
+    tf = 100.0 / sc.time_s
+    t = mesh.points(0.0, tf)
+    z = np.zeros((mesh.num_points, 8))
+    z[:, 0] = 1.0 + 80e3 / sc.radius_m
+    z[:, 3] = 2000.0 / sc.speed_m_s
+    z[:, 7] = math.radians(10.0)
+    bump = int(np.argmin(np.abs(t * sc.time_s - 46.9)))  # a point inside interval 2 (40-60 s)
+    z[bump, 6] = math.radians(30.0)
+    ref = HpIterate(z, np.zeros((mesh.num_points, 2)), tf, CollocationPattern.of(mesh, 8, 2))
+    excess, peak = between_points_excess(problem, ref)
+    assert excess[2] > 0.1
+    assert np.all(excess[[0, 1, 3, 4]] == 0.0)
+    assert 0.1 < peak[2] < 0.6  # beside the bump at 0.35 of the interval

@@ -44,7 +44,7 @@ class MeshAssessment:
         }
 
 
-def _excess(problem: EntryProblem, ref: HpIterate) -> tuple[Array, Array]:
+def between_points_excess(problem: EntryProblem, ref: HpIterate) -> tuple[Array, Array]:
     """Largest relative excess of bank, alpha and the path limits between points, per
     interval, on the fine grid of the mesh's polynomials, and where it peaks."""
     mesh = ref.pattern.mesh
@@ -101,7 +101,7 @@ def assess(
 
     # integrated in normalized time tau = t / t_f (the rates scaled by t_f)
     error = interval_errors(mesh, 1.0, ref.z, rates, attitude_at, units, 6)
-    excess, peak = _excess(problem, ref)
+    excess, peak = between_points_excess(problem, ref)
     marked = (error > options.mesh_error_tolerance) | (excess > options.mesh_excess_tolerance)
     return MeshAssessment(error, excess, peak, marked)
 
