@@ -157,3 +157,56 @@ def test_a_bank_rate_peak_marks_its_interval_and_where_it_peaks() -> None:
     assert excess[2] > 0.1
     assert np.all(excess[[0, 1, 3, 4]] == 0.0)
     assert 0.1 < peak[2] < 0.6  # beside the bump at 0.35 of the interval
+
+
+def test_the_curvature_blocks_are_the_clipped_hessian_of_the_rows_lagrangian() -> None:
+    """At one point: -d2(mu . F)/dx2 in scaled (z, w) units by central second differences of
+    the dynamics, eigen-clipped, against the method's blocks (central differences of the
+    analytic Jacobians). Tolerance 1e-3 relative to the block's largest entry: the reference
+    second differences themselves move by up to 2e-4 of it between steps 1e-5 and 3e-4
+    (scaled units; measured), the radius's exponential density dominating."""
+    import copy
+
+    from app.schemas import ProblemDocument
+    from worker.solver.methods.hp_scp.linearization import HpIterate, curvature_blocks
+    from worker.solver.models.alpha_bank_state import alpha_bank_state_dynamics
+    from worker.solver.models.layout import ALPHA_BANK_STATE
+    from worker.solver.problem import build_problem
+    from worker.solver.scenarios import get_scenario
+
+    problem = build_problem(
+        ProblemDocument.model_validate(copy.deepcopy(get_scenario("rlv-min-time-hp").problem))
+    )
+    sc = problem.scales
+    z = np.array([[1.0 + 60e3 / sc.radius_m, 0.1, 0.5, 0.8, -0.02, 0.3, 0.4, np.radians(25.0)]])
+    w = np.array([[0.01, -0.005]])
+    tf = 1.5
+    mu = np.array([[0.3, -0.2, 0.5, 1.1, -0.7, 0.4, 0.05, -0.02]])
+    units = np.concatenate([ALPHA_BANK_STATE.trust_units(sc), np.full(2, 0.02)])
+    mesh = ChebyshevMesh.uniform(1, 1)
+    ref = HpIterate(np.repeat(z, 2, 0), np.repeat(w, 2, 0), tf, CollocationPattern.of(mesh, 8, 2))
+    blocks = curvature_blocks(problem, ref, np.repeat(mu, 2, 0), units)
+
+    def phi(y: np.ndarray) -> float:
+        x = y * units  # scaled -> nondimensional
+        d = alpha_bank_state_dynamics(
+            x[None, :8], x[None, 8:], problem.forces, problem.omega, tf, jacobians=False
+        )
+        return float(mu[0] @ d.F[0])
+
+    y0 = np.concatenate([z[0], w[0]]) / units
+    h = 3e-4
+    H = np.empty((10, 10))
+    for i in range(10):
+        for j in range(10):
+            e_i, e_j = np.eye(10)[i] * h, np.eye(10)[j] * h
+            H[i, j] = (
+                phi(y0 + e_i + e_j)
+                - phi(y0 + e_i - e_j)
+                - phi(y0 - e_i + e_j)
+                + phi(y0 - e_i - e_j)
+            ) / (4 * h * h)
+    vals, vecs = np.linalg.eigh(-0.5 * (H + H.T))
+    expected = vecs @ np.diag(np.maximum(vals, 0.0)) @ vecs.T
+    assert np.max(np.abs(blocks[0] - expected)) <= 1e-3 * np.max(np.abs(expected))
+    assert np.min(np.linalg.eigvalsh(blocks[0])) >= -1e-12

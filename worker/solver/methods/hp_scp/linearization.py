@@ -37,6 +37,8 @@ class HpIterate:
     w: Array
     tf: float
     pattern: CollocationPattern
+    multipliers: Array | None = None
+    """mu (K, 8) of the subproblem that made this reference (``gathered_multipliers``)."""
 
 
 @dataclass
@@ -138,3 +140,46 @@ def finite(lin: Linearization) -> bool:
 
 
 __all__ = ["ALPHA", "HpIterate", "Linearization", "PathRows", "finite", "linearize", "path_rows"]
+
+
+CURVATURE_STEP = 1.0e-6
+"""Central-difference step of the curvature, in nondimensional state and rate units (the
+density's exponential in the radius makes a forward difference's error about 1e-3)."""
+
+
+def curvature_blocks(problem: EntryProblem, ref: HpIterate, mu: Array, units: Array) -> Array:
+    """Convexified Hessians of the collocation rows' Lagrangian, one (10, 10) block per point in
+    the scaled (z, w) variables: -sum_a mu_ja d2 F_a / dx2 at point j (F = t_f f), with
+    mu_ja = sum_i c_ij lambda_(i,a) the rows' multipliers gathered at the point they integrate,
+    by central differences of the analytic Jacobians, symmetrized and clipped to its nonnegative
+    eigenvalues (the SQP step foh-ptr takes on its own discretization)."""
+    k = ref.z.shape[0]
+    x = np.concatenate([ref.z, ref.w], axis=1)  # (K, 10)
+
+    def gradient(xx: Array) -> Array:
+        d = alpha_bank_state_dynamics(xx[:, :8], xx[:, 8:], problem.forces, problem.omega, ref.tf)
+        assert d.A is not None and d.B is not None
+        jac = np.concatenate([d.A, d.B], axis=2)  # (K, 8, 10)
+        return np.einsum("ka,kab->kb", mu, jac)
+
+    H = np.empty((k, 10, 10))
+    for c in range(10):
+        step = np.zeros(10)
+        step[c] = CURVATURE_STEP
+        H[:, :, c] = (gradient(x + step[None, :]) - gradient(x - step[None, :])) / (
+            2.0 * CURVATURE_STEP
+        )
+    H = -0.5 * (H + np.transpose(H, (0, 2, 1)))
+    scale = units[None, :, None] * units[None, None, :]
+    H *= scale
+    vals, vecs = np.linalg.eigh(H)
+    vals = np.maximum(vals, 0.0)
+    return np.einsum("kij,kj,klj->kil", vecs, vals, vecs)
+
+
+def gathered_multipliers(pattern: CollocationPattern, rows: Array) -> Array:
+    """mu (K, 8): each collocation row's multiplier (unscaled rows, (K-1, 8)) times its
+    coefficient c_ij, summed at the point j it integrates."""
+    mu = np.zeros((pattern.num_points, rows.shape[1]))
+    np.add.at(mu, pattern.pair_col, pattern.coef[:, None] * rows[pattern.pair_row - 1])
+    return mu

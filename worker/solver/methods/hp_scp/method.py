@@ -30,7 +30,9 @@ from worker.solver.methods.hp_scp.linearization import (
     HpIterate,
     Linearization,
     V,
+    curvature_blocks,
     finite,
+    gathered_multipliers,
     linearize,
 )
 from worker.solver.methods.hp_scp.mesh_update import assess, refined
@@ -330,7 +332,17 @@ class HpScp:
             box_tf=self.box_tf,
             hold_time=hold_time,
             rate_weight=self.options.weight_rate_regularization,
+            curvature=self._curvature(reference),
         )
+
+    def _curvature(self, reference: HpIterate) -> Array | None:
+        """The Lagrangian curvature about ``reference`` from the multipliers of the subproblem
+        that made it (None before the first, or when ``second_order`` is off)."""
+        mu = reference.multipliers
+        if not self.options.second_order or mu is None:
+            return None
+        units = np.concatenate([self.units.z, self.units.w])
+        return curvature_blocks(self.problem, reference, mu, units)
 
     def _trust_weight(self) -> float:
         """The step's quadratic weight: the ratio test's, or paper 003's stage (none under the
@@ -374,7 +386,7 @@ class HpScp:
             if not solution.status.usable or solution.x is None:
                 break
             dz, dw, _ = step_of(solution.x, cols, self.units)
-            trial = HpIterate(new.z + dz, new.w + dw, new.tf, new.pattern)
+            trial = HpIterate(new.z + dz, new.w + dw, new.tf, new.pattern, new.multipliers)
             lin = linearize(self.problem, trial)
             if not finite(lin) or self.penalized(trial, lin) >= self.penalized(new, candidate):
                 break
@@ -504,6 +516,9 @@ class HpScp:
         x = solution.x
         dz, dw, dtf = step_of(x, self.cols, self.units)
         new = HpIterate(reference.z + dz, reference.w + dw, reference.tf + dtf, reference.pattern)
+        if solution.y is not None:  # the collocation rows' multipliers, unscaled
+            rows = solution.y[: self.cols.collocation_rows].reshape(-1, 8) / self.units.z[None, :]
+            new.multipliers = gathered_multipliers(reference.pattern, rows)
         candidate = linearize(self.problem, new)
         self.correction_s = 0.0
         new, candidate, corrections = self._corrected(reference, new, candidate)

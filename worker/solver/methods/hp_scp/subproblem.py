@@ -75,6 +75,11 @@ class Columns:
         return self.zone + self.Z * self.K
 
     @property
+    def collocation_rows(self) -> int:
+        """The collocation rows, first among the equality rows."""
+        return (self.K - 1) * NZ
+
+    @property
     def steps(self) -> int:
         """Number of step columns (states, rates, final time): the trust-penalized ones."""
         return self.t + 1
@@ -135,6 +140,7 @@ def build(
     box_tf: float = 0.0,
     hold_time: bool = False,
     rate_weight: float = 0.0,
+    curvature: Array | None = None,
 ) -> tuple[ConeProblem, Columns]:
     """The subproblem about ``ref`` (see the module docstring)."""
     pat = ref.pattern
@@ -326,6 +332,15 @@ def build(
         diag[wcols] += 2.0 * per
         q[wcols] += 2.0 * per * ref.w / uw[None, :]
     P = sp.diags(diag, format="csc")
+    if curvature is not None:  # the Lagrangian's convexified blocks on (z_j, w_j)
+        cols10 = np.concatenate(
+            [cols.z(k_all[:, None], a_idx[None, :]), cols.wcol(k_all[:, None], c_idx[None, :])],
+            axis=1,
+        )  # (K, 10)
+        rows10 = np.repeat(cols10[:, :, None], 10, axis=2).ravel()
+        cols10_b = np.repeat(cols10[:, None, :], 10, axis=1).ravel()
+        P = P + sp.csc_matrix((curvature.ravel(), (rows10, cols10_b)), shape=(cols.n, cols.n))
+        P = sp.triu(P, format="csc")  # Clarabel reads the upper triangle
     return ConeProblem(P, q, A_mat, b, ConeSpec(n_eq, b.size - n_eq)), cols
 
 
