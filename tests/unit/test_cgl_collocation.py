@@ -15,7 +15,6 @@ from worker.solver.transcription.cgl import ChebyshevMesh
 from worker.solver.transcription.cgl_collocation import (
     CollocationPattern,
     PolynomialAttitude,
-    integrate_rates,
 )
 from worker.solver.transcription.cgl_mesh_refine import carry, interval_errors, split
 
@@ -47,16 +46,6 @@ def test_one_row_block_per_new_point() -> None:
     z = np.zeros((mesh.num_points, 8))
     assert pattern.defects(z, z).shape == (mesh.num_points - 1, 8)
     assert pattern.num_points == mesh.num_points == 13
-
-
-def test_integrate_rates_solves_the_rows() -> None:
-    mesh = _mesh()
-    pattern = CollocationPattern.of(mesh, 2, 0)
-    rng = np.random.default_rng(3)
-    F = rng.normal(size=(mesh.num_points, 2))
-    z = integrate_rates(pattern, np.array([1.0, -2.0]), F)
-    assert np.max(np.abs(pattern.defects(z, F))) < EXACT
-    assert np.allclose(z[0], [1.0, -2.0])
 
 
 def test_attitude_interpolates_and_differentiates_exactly() -> None:

@@ -80,18 +80,6 @@ class CollocationPattern:
         return z[1:] - z[self.start] - integral[1:]
 
 
-def integrate_rates(pattern: CollocationPattern, z0: Array, F: Array) -> Array:
-    """The states that solve the collocation rows exactly for given rates ``F`` at the points:
-    z_{p+i} = z_p + sum_j (h_k/2) B_ij F_{p+j}, interval after interval from ``z0``."""
-    z = np.empty((pattern.num_points, F.shape[1]))
-    z[0] = z0
-    integral = np.zeros_like(z)
-    np.add.at(integral, pattern.pair_row, pattern.coef[:, None] * F[pattern.pair_col])
-    for m, p in enumerate(pattern.start):
-        z[m + 1] = z[p] + integral[m + 1]
-    return z
-
-
 @dataclass(frozen=True)
 class PolynomialAttitude:
     """Bank (rad) and angle of attack (rad) as the mesh's piecewise polynomials through their

@@ -2,7 +2,7 @@
 Chebyshev-Gauss-Lobatto mesh, free final time (Liu, Cui, Du & Pu)."""
 
 from app.schemas.methods import HpScpOptions
-from worker.solver.methods.base import MethodInfo, Runner
+from worker.solver.methods.base import MODEL_FEATURES, MethodInfo, Runner
 from worker.solver.methods.hp_scp.support import NAME, OBJECTIVES, check_support
 
 METHOD = MethodInfo(
@@ -19,9 +19,7 @@ METHOD = MethodInfo(
         "path limits (heat rate with its alpha factor, dynamic pressure, load factor)",
         "no-fly zones",
         "angle of attack, bank and their rate limits (asymmetric bank range)",
-        "terminal conditions fixed, range, free or soft",
-        "rotating or non-rotating planet",
-        "exponential or US76 atmosphere",
+        *MODEL_FEATURES[:3],  # terminal conditions, planet rotation, atmosphere
         "polynomial or tabulated aerodynamics in angle of attack",
     ),
     objectives=OBJECTIVES,

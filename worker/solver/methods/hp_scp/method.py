@@ -186,9 +186,8 @@ class HpScp:
         w0 = np.zeros((1, 2))
 
         def rhs(t: float, z: Array) -> Array:
-            return alpha_bank_state_dynamics(z[None, :], w0, p.forces, p.omega, jacobians=False).F[
-                0
-            ]
+            dyn = alpha_bank_state_dynamics(z[None, :], w0, p.forces, p.omega, jacobians=False)
+            return dyn.F[0]
 
         events = []
         target = p.terminal["altitude_m"].target()
@@ -199,14 +198,10 @@ class HpScp:
             def approach(t: float, z: Array) -> float:
                 # d/dt of cos(central angle to the target): 0 at the closest approach
                 f = rhs(t, z)
-                c = math.sin(z[PHI]) * math.sin(lat_t) + math.cos(z[PHI]) * math.cos(
-                    lat_t
-                ) * math.cos(z[THETA] - lon_t)
                 dc_dphi = math.cos(z[PHI]) * math.sin(lat_t) - math.sin(z[PHI]) * math.cos(
                     lat_t
                 ) * math.cos(z[THETA] - lon_t)
                 dc_dth = -math.cos(z[PHI]) * math.cos(lat_t) * math.sin(z[THETA] - lon_t)
-                del c
                 return float(dc_dphi * f[PHI] + dc_dth * f[THETA])
 
             approach.terminal = True  # type: ignore[attr-defined]
@@ -406,10 +401,14 @@ class HpScp:
                 c += abs(ref.z[-1, row.state] - row.value) / u[row.state]
         return c
 
+    def _linear_objective(self, ref: HpIterate) -> float:
+        """The objective terms' linear part on ``ref`` (per trust unit)."""
+        assert self.objective is not None
+        return self.objective.tf * ref.tf + float(self.objective.final @ ref.z[-1])
+
     def objective_value(self, ref: HpIterate) -> float:
         """The linear objective (per trust unit) plus the rate regularization."""
-        assert self.objective is not None
-        f = self.objective.tf * ref.tf + float(self.objective.final @ ref.z[-1])
+        f = self._linear_objective(ref)
         reg = self.options.weight_rate_regularization
         if reg > 0.0:
             f += reg * float(np.mean(np.sum((ref.w / self.units.w[None, :]) ** 2, axis=1)))
@@ -485,23 +484,14 @@ class HpScp:
         return self._accept(proposal, pending, small)
 
     def penalized(self, ref: HpIterate, lin: Linearization) -> float:
-        """The objective plus the virtual weight times the nonlinear defects (scaled L1), the
-        path and zone violations and the fixed terminal misses: the cost the steps decrease."""
-        assert self.objective is not None
+        """The cost the steps decrease: the objective (with the rate regularization) plus the
+        virtual weight times the filter's violation, plus the soft terminal conditions at their
+        own weights."""
         u = self.units.z
-        w = self.w_vc
-        cost = self.objective.tf * ref.tf + float(self.objective.final @ ref.z[-1])
-        cost += w * float(np.sum(np.abs(lin.defects) / u[None, :]))
-        reg = self.options.weight_rate_regularization
-        if reg > 0.0:
-            cost += reg * float(np.mean(np.sum((ref.w / self.units.w[None, :]) ** 2, axis=1)))
-        cost += w * float(np.sum(np.maximum(lin.path.g, 0.0)))
-        cost += w * float(np.sum(np.maximum(-lin.zone_c, 0.0)))
+        cost = self.objective_value(ref) + self.w_vc * self.violation(ref, lin)
         for row in self.terminal:
-            miss = ref.z[-1, row.state] - row.value
-            if row.kind == "soft":
-                weight = w if row.virtual else row.weight
-                cost += weight * abs(miss) / u[row.state]
+            if row.kind == "soft" and not row.virtual:
+                cost += row.weight * abs(ref.z[-1, row.state] - row.value) / u[row.state]
         return cost
 
     def propose(
@@ -523,8 +513,7 @@ class HpScp:
         self.correction_s = 0.0
         new, candidate, corrections = self._corrected(reference, new, candidate)
         dz = new.z - reference.z
-        lin_obj = self.objective.tf * reference.tf + float(self.objective.final @ reference.z[-1])
-        predicted = lin_obj + float(self.q @ x)
+        predicted = self._linear_objective(reference) + float(self.q @ x)
         change = np.max(np.abs(dz), axis=0)
         slack = x[self.cols.nu_plus :]
         virtual = float(np.max(slack)) if slack.size else 0.0
@@ -534,7 +523,7 @@ class HpScp:
         terms = self._term_values(new)
         record = IterationRecord(
             iteration=iteration,
-            cost=next(iter(terms.values())) if len(terms) == 1 else lin_obj + float(self.q @ x),
+            cost=next(iter(terms.values())) if len(terms) == 1 else predicted,
             cost_terms={**terms, "final_time_s": new.tf * sc.time_s},
             objective_value=None,
             max_state_change=ALPHA_BANK_STATE.deltas_to_si(change, sc),

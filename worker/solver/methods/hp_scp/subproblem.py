@@ -11,7 +11,6 @@ slacks (L, K), zone slacks (Z, K) and terminal buffers (one per fixed condition)
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -350,14 +349,3 @@ def step_of(x: Array, cols: Columns, units: Units) -> tuple[Array, Array, float]
     dz = x[: K * NZ].reshape(K, NZ) * units.z
     dw = x[cols.w : cols.t].reshape(K, NW) * units.w
     return dz, dw, float(x[cols.t] * units.t)
-
-
-def virtual_sums(x: Array, cols: Columns) -> tuple[float, float]:
-    """(sum of the virtual controls, largest of all slacks) of a solution (scaled)."""
-    slack = x[cols.nu_plus :]
-    return float(np.sum(slack)), float(np.max(np.abs(slack))) if slack.size else 0.0
-
-
-def radians_per_s(problem: EntryProblem, deg_s: float) -> float:
-    """``deg_s`` in radians per nondimensional time."""
-    return math.radians(deg_s) * problem.scales.time_s
