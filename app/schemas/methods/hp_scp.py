@@ -101,6 +101,15 @@ class HpScpOptions(ScpRunOptions):
     virtual_control_growth: float = Field(
         2.0, ge=1.0, le=100.0, description="Factor of the virtual-control weight per iteration."
     )
+    virtual_control_steering: float = Field(
+        10.0,
+        ge=0.0,
+        le=1.0e3,
+        description="Steer the virtual-control weight to this many times the largest "
+        "multiplier of the relaxed rows (at most weight_virtual_control; 0 = the schedule "
+        "alone). An exact penalty needs only a weight above the multipliers; a far heavier "
+        "one lets round-off-sized defects outweigh the objective in the ratio test.",
+    )
     weight_trust_region: float = Field(
         30.0,
         gt=0,
@@ -120,10 +129,10 @@ class HpScpOptions(ScpRunOptions):
         "shrink, so its steps stop short of a stationary point).",
     )
     second_order: bool = Field(
-        False,
+        True,
         description="Add the convexified curvature of the collocation rows' Lagrangian (from "
-        "the last subproblem's multipliers) to the step's quadratic term: an SQP step "
-        "(measured on the paper's case: faster descent at 101 points, a slower one at 201).",
+        "the last subproblem's multipliers) to the step's quadratic term: an SQP step, whose "
+        "model the ratio test then judges with its curvature.",
     )
     second_order_corrections: int = Field(
         2,
@@ -142,7 +151,7 @@ class HpScpOptions(ScpRunOptions):
         "weight alone keeps steps in the region where the model holds).",
     )
     weight_trust_region_min: float = Field(
-        1.0e-3,
+        1.0e-6,
         gt=0,
         description="Smallest trust-region weight; a step is converged only once it is small at "
         "this weight (a small step at a heavier weight lightens it instead).",

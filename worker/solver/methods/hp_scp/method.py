@@ -41,6 +41,8 @@ from worker.solver.methods.hp_scp.subproblem import (
     ObjectiveWeights,
     Units,
     build,
+    model_curvature,
+    slacked_multipliers,
     step_of,
 )
 from worker.solver.models.alpha_bank_state import ALPHA, SIGMA, alpha_bank_state_dynamics
@@ -65,6 +67,11 @@ RATE_UNIT_DEG_S = 1.0
 RATIO_REJECT, RATIO_GOOD = 0.1, 0.75
 """Ratio test (SCvx): below the first the step is rejected, above the second the trust weight
 is halved; in between it is kept."""
+RATIO_EXACT, LIGHTEN_EXACT = 0.1, 0.25
+"""A ratio within RATIO_EXACT of 1 (the model predicted the decrease) divides the trust weight
+by 4 instead of 2."""
+REFINED_TRUST_WEIGHT = 1.0e-3
+"""Lightest trust weight of the first step on a refined mesh."""
 PROBE_FACTOR = 16.0
 """Factor that lightens the trust weight after a small step taken at a weight above its floor."""
 TRUST_WEIGHT_MAX = 1.0e8
@@ -97,6 +104,8 @@ KKT_RELATIVE = 1.0e-2
 the objective's gradient."""
 LINE_SEARCH_MIN = 1.0 / 16.0
 """Shortest step fraction the line search tries."""
+VIRTUAL_WEIGHT_FLOOR = 1.0
+"""Lightest virtual-control weight the multipliers may steer to (per trust unit)."""
 HOLD_RELEASE = 1.0e-4
 """Largest virtual control (scaled) at which the held final time is freed."""
 
@@ -160,6 +169,9 @@ class HpScp:
         self.box_tf = BOX_FINAL_TIME_S / sc.time_s
         self.extra: dict[str, Any] = {}
         self.pending: _Pending | None = None
+        self.steered: float | None = None
+        """The virtual-control weight the last subproblem's multipliers call for (None: the
+        schedule's)."""
         self.cols: Columns | None = None
         self.objective: ObjectiveWeights | None = None
 
@@ -283,8 +295,10 @@ class HpScp:
             o.weight_virtual_control_initial * o.virtual_control_growth ** (iteration - 1),
             o.weight_virtual_control,
         )
+        if self.steered is not None:
+            self.w_vc = min(self.w_vc, self.steered)
         problem, self.cols = self._build(reference, linearization, hold_time=self.holding)
-        self.q = problem.q
+        self.q, self.P = problem.q, problem.P
         self.state.cost = self.penalized(reference, linearization)  # at this iteration's weight
         return problem
 
@@ -509,11 +523,16 @@ class HpScp:
         if solution.y is not None:  # the collocation rows' multipliers, unscaled
             rows = solution.y[: self.cols.collocation_rows].reshape(-1, 8) / self.units.z[None, :]
             new.multipliers = gathered_multipliers(reference.pattern, rows)
+        kappa = self.options.virtual_control_steering
+        if kappa > 0.0 and solution.y is not None:
+            lam = slacked_multipliers(solution.y, self.cols)
+            self.steered = max(kappa * lam, VIRTUAL_WEIGHT_FLOOR)
         candidate = linearize(self.problem, new)
         self.correction_s = 0.0
         new, candidate, corrections = self._corrected(reference, new, candidate)
         dz = new.z - reference.z
-        predicted = self._linear_objective(reference) + float(self.q @ x)
+        predicted = self.objective_value(reference) + float(self.q @ x)
+        predicted += model_curvature(self.P, x, self._trust_weight(), self.cols.steps)
         change = np.max(np.abs(dz), axis=0)
         slack = x[self.cols.nu_plus :]
         virtual = float(np.max(slack)) if slack.size else 0.0
@@ -573,7 +592,9 @@ class HpScp:
             record.extra["rejected"] = f"ratio {ratio:.3g} below {RATIO_REJECT}"
             return scp.Judgement(accepted=False, linearization=None)
         if ratio > RATIO_GOOD:
-            state.weight = max(state.weight * 0.5, self.options.weight_trust_region_min)
+            # a model that predicted the decrease within RATIO_EXACT is lightened faster
+            factor = 0.5 if abs(ratio - 1.0) > RATIO_EXACT else LIGHTEN_EXACT
+            state.weight = max(state.weight * factor, self.options.weight_trust_region_min)
         self.accepted_costs.append(self.objective_value(proposal.reference))
         small = (pending.small_step or self._settled()) and defect_ok
         if small and not self.holding and state.weight > self.options.weight_trust_region_min:
@@ -597,6 +618,10 @@ class HpScp:
             new = refined(proposal.reference, assessment, self.options.max_mesh_points)
             if new is not None:
                 mesh = new.pattern.mesh
+                # the new points' defects make the first steps on a new mesh long ones: a
+                # weight left at its floor is rejected many times before it recovers
+                self.state.weight = max(self.state.weight, REFINED_TRUST_WEIGHT)
+                self.accepted_costs.clear()  # the settling test starts again on the new mesh
                 record.extra["mesh_refined"] = {
                     "intervals": mesh.num_intervals,
                     "points": mesh.num_points,

@@ -11,7 +11,7 @@ slacks (L, K), zone slacks (Z, K) and terminal buffers (one per fixed condition)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -38,12 +38,14 @@ class Units:
 
 @dataclass(frozen=True)
 class Columns:
-    """First column of each variable block and the total count."""
+    """First column of each variable block and the total count (and, once built, the first
+    row of the slacked inequality blocks)."""
 
     K: int
     L: int
     Z: int
     T: int
+    rows: dict[str, int] = field(default_factory=dict, compare=False)
 
     @property
     def w(self) -> int:
@@ -240,6 +242,7 @@ def build(
         )
     # path limits: g + g_r dr + g_v dV + g_a dalpha - slack <= 0
     path = lin.path
+    cols.rows["path"] = ineq.count
     for i in range(cols.L):
         ineq.add(
             np.repeat(k_all, 4),
@@ -270,6 +273,7 @@ def build(
         )
     # terminal conditions on the last point: fixed ones with an L1 buffer, ranges as bounds
     last = K - 1
+    cols.rows["terminal"] = ineq.count
     for j, row in enumerate(soft):
         off = row.value - ref.z[last, row.state]
         ineq.add(
@@ -312,6 +316,8 @@ def build(
         np.zeros(n_slack),
     )
     n_eq = eq.count
+    for key in ("path", "terminal"):  # rows counted from the first equality row
+        cols.rows[key] += n_eq
     rows = np.concatenate(eq.r + [r + n_eq for r in ineq.r])
     cols_all = np.concatenate(eq.c + ineq.c)
     vals = np.concatenate(eq.v + ineq.v)
@@ -341,6 +347,37 @@ def build(
         P = P + sp.csc_matrix((curvature.ravel(), (rows10, cols10_b)), shape=(cols.n, cols.n))
         P = sp.triu(P, format="csc")  # Clarabel reads the upper triangle
     return ConeProblem(P, q, A_mat, b, ConeSpec(n_eq, b.size - n_eq)), cols
+
+
+def model_curvature(P: sp.spmatrix | None, x: Array, weight_trust: float, steps: int) -> float:
+    """The quadratic part of a step's model of the penalized cost: 1/2 x'Px of the subproblem's
+    upper-triangular P less the trust penalty on the first ``steps`` columns, i.e. the rate
+    regularization and the Lagrangian's curvature. The predicted decrease must count it: for a
+    Newton-like step the linear part alone predicts twice the decrease the quadratic model
+    does, and the ratio test would hold the trust weight on a model that is right."""
+    if P is None:
+        return 0.0
+    full = 0.5 * float(x @ (P @ x) + x @ (P.T @ x) - P.diagonal() @ (x * x))
+    head = x[:steps]
+    return full - 0.5 * weight_trust * float(head @ head)
+
+
+def slacked_multipliers(y: Array, cols: Columns) -> float:
+    """The largest multiplier of a row the virtual control relaxes (scaled units): collocation
+    rows, path and zone rows, and each fixed terminal condition (the difference of its two
+    one-sided rows' multipliers: at a met condition both rows are active and an interior-point
+    solver splits the weight between them, so neither alone is the condition's multiplier).
+    The exact L1 penalty needs a weight above it (Nocedal & Wright, sec. 17.2)."""
+    largest = float(np.max(np.abs(y[: cols.collocation_rows]))) if cols.K > 1 else 0.0
+    p0 = cols.rows["path"]
+    n_path = (cols.L + cols.Z) * cols.K
+    if n_path:
+        largest = max(largest, float(np.max(np.abs(y[p0 : p0 + n_path]))))
+    t0 = cols.rows["terminal"]
+    if cols.T:
+        pairs = y[t0 : t0 + 2 * cols.T]
+        largest = max(largest, float(np.max(np.abs(pairs[0::2] - pairs[1::2]))))
+    return largest
 
 
 def step_of(x: Array, cols: Columns, units: Units) -> tuple[Array, Array, float]:
