@@ -8,13 +8,18 @@ differentiation matrices' conditioning of a few hundred at these degrees).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
-from worker.solver.transcription.cgl import ChebyshevMesh
+from worker.solver.transcription.cgl import ChebyshevMesh, cgl_points, interpolate
 from worker.solver.transcription.cgl_collocation import (
     CollocationPattern,
     PolynomialAttitude,
+    PolynomialSamples,
+    bernstein_from_cgl,
+    degree_elevation,
 )
 from worker.solver.transcription.cgl_mesh_refine import carry, interval_errors, split
 
@@ -199,3 +204,53 @@ def test_the_curvature_blocks_are_the_clipped_hessian_of_the_rows_lagrangian() -
     expected = vecs @ np.diag(np.maximum(vals, 0.0)) @ vecs.T
     assert np.max(np.abs(blocks[0] - expected)) <= 1e-3 * np.max(np.abs(expected))
     assert np.min(np.linalg.eigvalsh(blocks[0])) >= -1e-12
+
+
+def test_bernstein_coefficients_reproduce_the_interpolant_and_bound_it() -> None:
+    """The Bernstein form from CGL values is the same polynomial (rounding only: degree 6, order-one
+    values), its end coefficients are its end values, and (elevated or not) its coefficients
+    enclose its range."""
+    n = 6
+    tau = cgl_points(n)
+    values = np.sin(3.0 * tau) + 0.3 * tau  # extrema inside the interval
+    c = bernstein_from_cgl(n) @ values
+    x = np.linspace(-1.0, 1.0, 401)
+    s = 0.5 * (x + 1.0)
+    basis = np.array([math.comb(n, j) * s**j * (1 - s) ** (n - j) for j in range(n + 1)]).T
+    assert np.allclose(basis @ c, interpolate(values, n, x), atol=1e-13)
+    assert c[0] == pytest.approx(values[0], abs=1e-14) and c[-1] == pytest.approx(values[-1])
+    curve = interpolate(values, n, x)
+    for m in (0, 3, n):
+        elevated = degree_elevation(n, m) @ c
+        assert elevated.min() <= curve.min() + 1e-12 and elevated.max() >= curve.max() - 1e-12
+    # elevation narrows the hull towards the range
+    width = [np.ptp(degree_elevation(n, m) @ c) for m in (0, n, 4 * n)]
+    assert width[0] > width[1] > width[2] > np.ptp(curve)
+
+
+def test_polynomial_samples_give_the_interpolant_and_its_slope_hull() -> None:
+    """On a two-interval mesh: the between-point rows interpolate exactly, and the slope rows are
+    the Bernstein coefficients of the polynomial's derivative in t / t_f, so they enclose the rate
+    (times t_f) that the attitude polynomial flies."""
+    mesh = ChebyshevMesh((0.0, 0.4, 1.0), (4, 6))
+    tf = 2.0
+    t = mesh.points(0.0, tf)
+    x = np.sin(3.0 * t / tf) + 0.2 * t
+    samples = PolynomialSamples.of(mesh, per_gap=2, elevated=True)
+    attitude = PolynomialAttitude(mesh, tf, x, x)
+    at = np.sum(samples.between * x[samples.between_idx], axis=1)
+    edges = mesh.interval_times(0.0, tf)
+    times = []
+    for k, n in enumerate(mesh.degrees):
+        tau = cgl_points(n)
+        share = np.array([1.0, 2.0]) / 3.0
+        mid = (tau[:-1, None] + share[None, :] * np.diff(tau)[:, None]).ravel()
+        times.extend(0.5 * (edges[k] * (1 - mid) + edges[k + 1] * (1 + mid)))
+    bank, _ = attitude.at(np.array(times))
+    assert np.allclose(at, bank, atol=1e-14)
+    slopes = np.sum(samples.slope * x[samples.slope_idx], axis=1) / tf
+    first = 2 * mesh.degrees[0]  # the first interval's rows: its derivative at degree 2n - 1
+    for k, rows in enumerate((slopes[:first], slopes[first:])):
+        inside = np.linspace(edges[k], edges[k + 1], 301)[1:-1]
+        rate, _ = attitude.rates_at(inside)
+        assert rows.min() <= rate.min() + 1e-12 and rows.max() >= rate.max() - 1e-12

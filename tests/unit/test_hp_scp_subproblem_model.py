@@ -36,14 +36,16 @@ def test_model_curvature_of_a_trust_penalty_alone_is_zero() -> None:
 
 def test_slacked_multipliers_read_a_met_terminal_condition_as_the_difference_of_its_rows() -> None:
     cols = Columns(K=3, L=1, Z=0, T=2)
-    collocation = cols.collocation_rows  # 16 equality rows
-    y = np.zeros(60)
-    y[:collocation] = np.linspace(-2.0, 1.5, collocation)  # largest magnitude 2
-    cols.rows["path"] = 30
-    y[30:33] = [0.0, 4.0, 0.5]  # one path limit at three points
-    cols.rows["terminal"] = 40
+    weight = 1.0e4
+    y = np.zeros(40 + (cols.n - cols.nu_plus))
+    y[: cols.collocation_rows] = np.linspace(-2.0, 1.5, cols.collocation_rows)  # largest 2
+    signs = y[40:]  # a view: the slacks' sign rows, in column order
+    signs[:] = weight  # an unused slack's sign row carries the whole weight
+    path = cols.path - cols.nu_plus
+    signs[path : path + 3] = [weight, weight - 4.0, weight - 0.5]  # path rows sharing slacks
+    cols.rows["terminal"] = 30
     # both one-sided rows of a met condition active: an interior-point split of the weight
-    y[40:44] = [3333.0, 3333.5, 3332.0, 3333.0]
-    assert slacked_multipliers(y, cols) == pytest.approx(4.0)
-    y[42] = 3323.0  # the second condition's multiplier is now 10
-    assert slacked_multipliers(y, cols) == pytest.approx(10.0)
+    y[30:34] = [3333.0, 3333.5, 3332.0, 3333.0]
+    assert slacked_multipliers(y, cols, weight) == pytest.approx(4.0)
+    y[32] = 3323.0  # the second condition's multiplier is now 10
+    assert slacked_multipliers(y, cols, weight) == pytest.approx(10.0)

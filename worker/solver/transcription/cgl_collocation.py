@@ -16,13 +16,24 @@ dF/dt_f = f).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from worker.solver.transcription.cgl import ChebyshevMesh, integration_matrix, interpolate
+from worker.solver.transcription.cgl import (
+    ChebyshevMesh,
+    cgl_points,
+    integration_matrix,
+    interpolate,
+)
 
 Array = np.ndarray
+SAMPLES_PER_GAP = 3
+"""Samples between consecutive points of the interpolated states for the path limits
+(``PolynomialSamples.between``): on paper 003's case 3 leave the propagated load factor within
+0.3 % of its limit."""
 
 
 @dataclass(frozen=True)
@@ -72,12 +83,105 @@ class CollocationPattern:
         """Points of the mesh (K)."""
         return self.mesh.num_points
 
+    @cached_property
+    def samples(self) -> PolynomialSamples:
+        """Each interval's polynomial sampled at its points and between them (see
+        :class:`PolynomialSamples`)."""
+        return PolynomialSamples.of(self.mesh, SAMPLES_PER_GAP, elevated=True)
+
     def defects(self, z: Array, F: Array) -> Array:
         """(K-1, nz) residuals z_{p+i} - z_p - sum_j (h_k/2) B_ij F_{p+j} of each collocated
         point (zero on an exact solution of the collocation equations)."""
         integral = np.zeros((self.num_points, self.nz), dtype=np.result_type(z, F))
         np.add.at(integral, self.pair_row, self.coef[:, None] * F[self.pair_col])
         return z[1:] - z[self.start] - integral[1:]
+
+
+def _between(tau: Array, per_gap: int) -> Array:
+    """``per_gap`` equally spaced points inside each gap of the increasing ``tau``."""
+    share = np.arange(1, per_gap + 1) / (per_gap + 1)
+    return (tau[:-1, None] + share[None, :] * np.diff(tau)[:, None]).ravel()
+
+
+def bernstein_from_cgl(n: int) -> Array:
+    """(n+1, n+1) map from a degree-n polynomial's values at the CGL points to its Bernstein
+    coefficients on [-1, 1]: the polynomial lies within the range of its coefficients, and its
+    first and last coefficients are its end values (Farouki (2012), Comput. Aided Geom. Des. 29,
+    sec. 2)."""
+    x = 0.5 * (cgl_points(n) + 1.0)
+    j = np.arange(n + 1)
+    binom = np.array([math.comb(n, k) for k in j], dtype=float)
+    basis = binom[None, :] * x[:, None] ** j[None, :] * (1.0 - x[:, None]) ** (n - j)[None, :]
+    return np.linalg.solve(basis, np.eye(n + 1))
+
+
+def degree_elevation(n: int, m: int) -> Array:
+    """(n+m+1, n+1) map from the Bernstein coefficients of a degree-n polynomial to those of the
+    same polynomial written at degree n+m; their range narrows towards the polynomial's as m
+    grows (Farouki (2012), sec. 5)."""
+    out = np.zeros((n + m + 1, n + 1))
+    for i in range(n + m + 1):
+        for j in range(max(0, i - m), min(n, i) + 1):
+            out[i, j] = math.comb(n, j) * math.comb(m, i - j) / math.comb(n + m, i)
+    return out
+
+
+@dataclass(frozen=True)
+class PolynomialSamples:
+    """Linear maps from the point values x of a mesh's piecewise polynomial to what bounds on it
+    between the points need; each row acts on ``*_idx`` (one interval's points, padded to the
+    largest degree with zero coefficients on a repeated index).
+
+    - ``between``: its values at ``per_gap`` equally spaced times in each gap between points
+      (for limits on functions of the states, which are only sampled);
+    - ``hull``: its interior Bernstein coefficients: between bounds at the points and on these,
+      the polynomial is within them everywhere on its interval;
+    - ``slope``: the Bernstein coefficients of its derivative with respect to the normalized time
+      t / t_f ((n / h_k) times the differences of its coefficients): divided by t_f they bound the
+      rate a flight of the polynomial sees, so |slope @ x| <= r t_f, linear in the point values
+      and t_f together, holds the rate within r everywhere (the collocated rates at the points are
+      not the polynomial's derivative).
+    """
+
+    between_idx: Array
+    between: Array
+    hull_idx: Array
+    hull: Array
+    slope_idx: Array
+    slope: Array
+
+    @classmethod
+    def of(cls, mesh: ChebyshevMesh, per_gap: int = 1, elevated: bool = False) -> PolynomialSamples:
+        """The maps of ``mesh``; ``elevated``: the hulls of each interval's polynomials written
+        at twice their degree (measured on paper 003's case: t_f 1332.58 s in 40 iterations,
+        against 1333.61 s in 44 with the plain hulls; three times the degree gave the same
+        1332.57 s in 54)."""
+        width = max(mesh.degrees) + 1
+        h = np.diff(np.asarray(mesh.boundaries))
+        parts: dict[str, list[Array]] = {k: [] for k in ("bi", "b", "hi", "h", "si", "s")}
+        for hk, n, sl in zip(h, mesh.degrees, mesh.interval_slices(), strict=True):
+            tau = cgl_points(n)
+            idx = np.arange(sl.start, sl.stop)
+            pad = width - (n + 1)
+            padded = np.concatenate([idx, np.full(pad, idx[-1])])
+            at = interpolate(np.eye(n + 1), n, _between(tau, per_gap))
+            coefficients = bernstein_from_cgl(n)
+            slope = (n / hk) * np.diff(coefficients, axis=0)  # (n, n+1)
+            if elevated:
+                coefficients = degree_elevation(n, n) @ coefficients
+                slope = degree_elevation(n - 1, n) @ slope
+            for key, rows in (("b", at), ("h", coefficients[1:-1]), ("s", slope)):
+                parts[key + "i"].append(np.tile(padded, (rows.shape[0], 1)))
+                parts[key].append(np.pad(rows, ((0, 0), (0, pad))))
+        out = {k: np.concatenate(v) for k, v in parts.items()}
+        return cls(
+            out["bi"].astype(np.int64),
+            out["b"],
+            out["hi"].astype(np.int64),
+            out["h"],
+            out["si"].astype(np.int64),
+            out["s"],
+        )
 
 
 @dataclass(frozen=True)

@@ -408,7 +408,7 @@ class HpScp:
         path and zone excesses (log units, rad) and fixed terminal misses (trust units)."""
         u = self.units.z
         c = float(np.sum(np.abs(lin.defects) / u[None, :]))
-        c += float(np.sum(np.maximum(lin.path.g, 0.0)))
+        c += float(np.sum(lin.path_excess()))
         c += float(np.sum(np.maximum(-lin.zone_c, 0.0)))
         for row in self.terminal:
             if row.kind == "soft" and row.virtual:
@@ -525,7 +525,7 @@ class HpScp:
             new.multipliers = gathered_multipliers(reference.pattern, rows)
         kappa = self.options.virtual_control_steering
         if kappa > 0.0 and solution.y is not None:
-            lam = slacked_multipliers(solution.y, self.cols)
+            lam = slacked_multipliers(solution.y, self.cols, self.w_vc)
             self.steered = max(kappa * lam, VIRTUAL_WEIGHT_FLOOR)
         candidate = linearize(self.problem, new)
         self.correction_s = 0.0

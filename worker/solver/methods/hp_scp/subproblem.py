@@ -240,9 +240,9 @@ def build(
             np.concatenate([np.full(K, uw[c]), np.full(K, -uw[c])]),
             np.concatenate([limit - ref.w[:, c], limit + ref.w[:, c]]),
         )
+    _between_points(ineq, problem, ref, cols, units)
     # path limits: g + g_r dr + g_v dV + g_a dalpha - slack <= 0
     path = lin.path
-    cols.rows["path"] = ineq.count
     for i in range(cols.L):
         ineq.add(
             np.repeat(k_all, 4),
@@ -259,6 +259,32 @@ def build(
             ).ravel(),
             -path.g[i],
         )
+    between = lin.between
+    if between is not None and lin.between_samples is not None and between.g.size:
+        idx, coef = lin.between_samples
+        owner = lin.between_owner
+        n_s, width = idx.shape
+        rows_s = np.repeat(np.arange(n_s), 3 * width + 1)
+        for i in range(cols.L):  # the same limits between the points, on the nearest slack
+            entries = np.concatenate(
+                [
+                    cols.z(idx, R),
+                    cols.z(idx, V),
+                    cols.z(idx, ALPHA),
+                    (cols.path + i * K + owner)[:, None],
+                ],
+                axis=1,
+            )
+            values = np.concatenate(
+                [
+                    coef * (between.g_r[i] * uz[R])[:, None],
+                    coef * (between.g_v[i] * uz[V])[:, None],
+                    coef * (between.g_a[i] * uz[ALPHA])[:, None],
+                    -np.ones((n_s, 1)),
+                ],
+                axis=1,
+            )
+            ineq.add(rows_s, entries.ravel(), values.ravel(), -between.g[i])
     # no-fly zones: distance - radius + gradient step + slack >= 0
     for i in range(cols.Z):
         ineq.add(
@@ -316,8 +342,7 @@ def build(
         np.zeros(n_slack),
     )
     n_eq = eq.count
-    for key in ("path", "terminal"):  # rows counted from the first equality row
-        cols.rows[key] += n_eq
+    cols.rows["terminal"] += n_eq  # rows counted from the first equality row
     rows = np.concatenate(eq.r + [r + n_eq for r in ineq.r])
     cols_all = np.concatenate(eq.c + ineq.c)
     vals = np.concatenate(eq.v + ineq.v)
@@ -349,6 +374,53 @@ def build(
     return ConeProblem(P, q, A_mat, b, ConeSpec(n_eq, b.size - n_eq)), cols
 
 
+def _between_points(
+    ineq: _Rows, problem: EntryProblem, ref: HpIterate, cols: Columns, units: Units
+) -> None:
+    """Bank and alpha as the flight sees them, their interval polynomials, within their bounds
+    and rate bounds everywhere, through the Bernstein coefficients of the polynomials and of
+    their derivatives (``PolynomialSamples``; the rate rows |g x| <= r t_f are linear in the
+    point values and t_f)."""
+    samples = ref.pattern.samples
+    uz, ut = units.z, units.t
+    value_bounds = [(SIGMA, problem.bank_min, problem.bank_max)]
+    if problem.alpha_range is not None:
+        value_bounds.append((ALPHA, *problem.alpha_range))
+    idx, hull = samples.hull_idx, samples.hull
+    n_v = idx.shape[0]
+    for a, lo, hi in value_bounds:
+        if not n_v:
+            break
+        at = np.sum(hull * ref.z[idx, a], axis=1)
+        columns = cols.z(idx, a)
+        coef = hull * uz[a]
+        rows = np.repeat(np.arange(n_v), columns.shape[1])
+        ineq.add(
+            np.concatenate([rows, n_v + rows]),
+            np.concatenate([columns.ravel(), columns.ravel()]),
+            np.concatenate([coef.ravel(), -coef.ravel()]),
+            np.concatenate([hi - at, at - lo]),
+        )
+    idx, slope_map = samples.slope_idx, samples.slope
+    n_r = idx.shape[0]
+    for a, limit in ((SIGMA, problem.bank_rate_max), (ALPHA, problem.alpha_rate_max)):
+        if limit is None:
+            continue
+        slope = np.sum(slope_map * ref.z[idx, a], axis=1)
+        columns = cols.z(idx, a)
+        width = columns.shape[1]
+        coef = slope_map * uz[a]
+        rows = np.repeat(np.arange(n_r), width + 1)
+        tcol = np.full((n_r, 1), cols.t)
+        tcoef = np.full((n_r, 1), -limit * ut)
+        ineq.add(
+            np.concatenate([rows, n_r + rows]),
+            np.concatenate([np.hstack([columns, tcol]).ravel()] * 2),
+            np.concatenate([np.hstack([coef, tcoef]).ravel(), np.hstack([-coef, tcoef]).ravel()]),
+            np.concatenate([limit * ref.tf - slope, limit * ref.tf + slope]),
+        )
+
+
 def model_curvature(P: sp.spmatrix | None, x: Array, weight_trust: float, steps: int) -> float:
     """The quadratic part of a step's model of the penalized cost: 1/2 x'Px of the subproblem's
     upper-triangular P less the trust penalty on the first ``steps`` columns, i.e. the rate
@@ -362,17 +434,19 @@ def model_curvature(P: sp.spmatrix | None, x: Array, weight_trust: float, steps:
     return full - 0.5 * weight_trust * float(head @ head)
 
 
-def slacked_multipliers(y: Array, cols: Columns) -> float:
+def slacked_multipliers(y: Array, cols: Columns, weight: float) -> float:
     """The largest multiplier of a row the virtual control relaxes (scaled units): collocation
-    rows, path and zone rows, and each fixed terminal condition (the difference of its two
-    one-sided rows' multipliers: at a met condition both rows are active and an interior-point
-    solver splits the weight between them, so neither alone is the condition's multiplier).
-    The exact L1 penalty needs a weight above it (Nocedal & Wright, sec. 17.2)."""
+    rows; path and zone rows, by slack (the total of the rows that share it, ``weight`` less
+    the multiplier of its sign row); and each fixed terminal condition (the difference of its
+    two one-sided rows' multipliers: at a met condition both rows are active and an
+    interior-point solver splits the weight between them, so neither alone is the condition's
+    multiplier). The exact L1 penalty needs a weight above it (Nocedal & Wright, sec. 17.2)."""
     largest = float(np.max(np.abs(y[: cols.collocation_rows]))) if cols.K > 1 else 0.0
-    p0 = cols.rows["path"]
-    n_path = (cols.L + cols.Z) * cols.K
-    if n_path:
-        largest = max(largest, float(np.max(np.abs(y[p0 : p0 + n_path]))))
+    n_slack = cols.n - cols.nu_plus
+    signs = y[y.size - n_slack :]  # the slacks' sign rows, in column order
+    shared = signs[cols.path - cols.nu_plus : cols.terminal - cols.nu_plus]
+    if shared.size:
+        largest = max(largest, weight - float(np.min(shared)))
     t0 = cols.rows["terminal"]
     if cols.T:
         pairs = y[t0 : t0 + 2 * cols.T]
