@@ -170,6 +170,14 @@ class HpScpOptions(ScpRunOptions):
         gt=0,
         description="Largest nonlinear collocation defect (scaled units) of a converged iterate.",
     )
+    between_points: Literal["always", "staged"] = Field(
+        "always",
+        description="Hold bank and alpha within their bounds and rate bounds on the whole of "
+        "each interval's polynomial (through the Bernstein coefficients) and sample the path "
+        "limits between the points: from the first iteration, or only once the run has "
+        "converged with them at the points ('staged'; measured on the paper's case: a lower "
+        "final time in about twice the iterations).",
+    )
     mesh: Literal["adaptive", "fixed"] = Field(
         "adaptive",
         description="Mesh strategy: split the intervals whose propagated error or excess between "

@@ -170,6 +170,9 @@ class HpScp:
         self.extra: dict[str, Any] = {}
         self.pending: _Pending | None = None
         self.steered: float | None = None
+        self.between_on = options.between_points == "always"
+        """Whether the attitude's bounds hold between the points and the path limits are
+        sampled there (``subproblem._between_points``)."""
         """The virtual-control weight the last subproblem's multipliers call for (None: the
         schedule's)."""
         self.cols: Columns | None = None
@@ -342,6 +345,7 @@ class HpScp:
             hold_time=hold_time,
             rate_weight=self.options.weight_rate_regularization,
             curvature=self._curvature(reference),
+            between_points=self.between_on,
         )
 
     def _curvature(self, reference: HpIterate) -> Array | None:
@@ -408,7 +412,8 @@ class HpScp:
         path and zone excesses (log units, rad) and fixed terminal misses (trust units)."""
         u = self.units.z
         c = float(np.sum(np.abs(lin.defects) / u[None, :]))
-        c += float(np.sum(lin.path_excess()))
+        excess = lin.path_excess() if self.between_on else np.maximum(lin.path.g, 0.0)
+        c += float(np.sum(excess))
         c += float(np.sum(np.maximum(-lin.zone_c, 0.0)))
         for row in self.terminal:
             if row.kind == "soft" and row.virtual:
@@ -612,6 +617,14 @@ class HpScp:
         """Accept the proposal; when it has converged on its mesh, assess the mesh and move the
         reference onto the refined mesh when an interval fails (then the run goes on)."""
         record = proposal.record
+        if small and not self.between_on:
+            # "staged": converged with the attitude bounded at the points only; now on the
+            # whole polynomials (the step is kept, its linearization redone with the new rows)
+            self.between_on = True
+            record.extra["between_points"] = "on"
+            self.accepted_costs.clear()
+            self.state.weight = max(self.state.weight, REFINED_TRUST_WEIGHT)
+            return scp.Judgement(accepted=True, small=False, virtual_control=pending.virtual)
         if self.options.mesh == "adaptive" and small:
             assessment = assess(self.problem, proposal.reference, self.units.z, self.options)
             record.extra["mesh_assessment"] = assessment.summary()

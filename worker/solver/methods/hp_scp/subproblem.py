@@ -142,6 +142,7 @@ def build(
     hold_time: bool = False,
     rate_weight: float = 0.0,
     curvature: Array | None = None,
+    between_points: bool = True,
 ) -> tuple[ConeProblem, Columns]:
     """The subproblem about ``ref`` (see the module docstring)."""
     pat = ref.pattern
@@ -240,7 +241,8 @@ def build(
             np.concatenate([np.full(K, uw[c]), np.full(K, -uw[c])]),
             np.concatenate([limit - ref.w[:, c], limit + ref.w[:, c]]),
         )
-    _between_points(ineq, problem, ref, cols, units)
+    if between_points:
+        _between_points(ineq, problem, ref, cols, units)
     # path limits: g + g_r dr + g_v dV + g_a dalpha - slack <= 0
     path = lin.path
     for i in range(cols.L):
@@ -259,7 +261,7 @@ def build(
             ).ravel(),
             -path.g[i],
         )
-    between = lin.between
+    between = lin.between if between_points else None
     if between is not None and lin.between_samples is not None and between.g.size:
         idx, coef = lin.between_samples
         owner = lin.between_owner
