@@ -54,6 +54,7 @@ REQUIRED: frozenset[str] = frozenset(
         "foh-nodes-400-interval-min-2",
         "foh-us76",
         "foh-us76-final-time-1650",
+        "hp-paper-zones",
     }
 )
 """Variants that succeed within ``TOLERANCE`` and verified feasible today (they cannot regress)."""

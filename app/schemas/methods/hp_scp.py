@@ -56,7 +56,7 @@ class HpScpOptions(ScpRunOptions):
     intervals: int = Field(
         20, ge=1, le=400, description="Intervals of the initial mesh; nodes - 1 must divide."
     )
-    max_iterations: int = Field(60, ge=1, le=500, description="Most SCP iterations, 1..500.")
+    max_iterations: int = Field(100, ge=1, le=500, description="Most SCP iterations, 1..500.")
     initial_alpha_deg: float = Field(
         20.0, gt=-90, lt=90, description="Angle of attack of the constant-control guess, deg."
     )

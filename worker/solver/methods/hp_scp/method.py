@@ -70,6 +70,9 @@ is halved; in between it is kept."""
 RATIO_EXACT, LIGHTEN_EXACT = 0.1, 0.25
 """A ratio within RATIO_EXACT of 1 (the model predicted the decrease) divides the trust weight
 by 4 instead of 2."""
+STALL_RELATIVE = 1.0e-6
+"""A predicted decrease below this share of the penalized cost, with the step rejected, means
+the reference is stationary on its mesh."""
 REFINED_TRUST_WEIGHT = 1.0e-3
 """Lightest trust weight of the first step on a refined mesh."""
 PROBE_FACTOR = 16.0
@@ -302,6 +305,7 @@ class HpScp:
             self.w_vc = min(self.w_vc, self.steered)
         problem, self.cols = self._build(reference, linearization, hold_time=self.holding)
         self.q, self.P = problem.q, problem.P
+        self.reference_defect = float(np.max(np.abs(linearization.defects) / self.units.z[None, :]))
         self.state.cost = self.penalized(reference, linearization)  # at this iteration's weight
         return problem
 
@@ -592,6 +596,17 @@ class HpScp:
         defect_ok = record.linearization_error <= self.options.defect_tolerance
         if self.options.acceptance == "always":
             return self._accept(proposal, pending, pending.small_step and defect_ok)
+        if (
+            ratio < RATIO_REJECT
+            and predicted <= STALL_RELATIVE * max(1.0, abs(state.cost))
+            and self.reference_defect <= self.options.defect_tolerance
+        ):
+            # the model sees no progress worth a step and the step it offers fails: the
+            # reference is stationary on this mesh (kept, and judged as converged)
+            record.extra["rejected"] = f"stationary: predicted decrease {predicted:.3g}"
+            proposal.reference = reference
+            pending.linearization = linearize(self.problem, reference)
+            return self._accept(proposal, pending, True)
         if ratio < RATIO_REJECT and not (pending.small_step and defect_ok):
             state.weight = min(state.weight * 2.0, TRUST_WEIGHT_MAX)
             record.extra["rejected"] = f"ratio {ratio:.3g} below {RATIO_REJECT}"
