@@ -9,8 +9,10 @@ exponential atmosphere, polynomial lift and drag in alpha with the velocity sche
 (paper 000 eq. 9), heat-rate, dynamic-pressure and load-factor limits, fixed or soft terminal
 conditions (soft ones held hard, which has the same optimum as their exact penalty), a fixed or
 free final time, bank limits (bank as a state and its rate as the control when a rate limit is
-given, else the bank as the control), great-circle or lat/lon no-fly zones, and the objectives
-maximum terminal velocity and minimum heat load.
+given, else the bank as the control), an optimized angle of attack (``vehicle.angle_of_attack``
+mode "optimized": alpha a state and its rate a control, paper 003 eq. 1, within its bounds),
+great-circle or lat/lon no-fly zones, and the objectives maximum terminal velocity, minimum heat
+load and minimum time.
 
 CasADi is an optional benchmark dependency (``pip install -e '.[bench]'``); nothing in the
 service imports this module.
@@ -26,6 +28,9 @@ from typing import Any
 import numpy as np
 
 from worker.solver.trajectory import TIME_STATE_NAMES as STATE_NAMES
+
+GUESS_ALPHA_DEG = 20.0
+"""Constant angle of attack of the guess's propagation when alpha is optimized."""
 
 
 @dataclass
@@ -56,12 +61,20 @@ class EntryNlp:
     """The NLP of one problem document on ``intervals`` uniform intervals, built once and
     solvable many times (each solve from the same initial guess)."""
 
-    def __init__(self, document: dict[str, Any], intervals: int) -> None:
+    def __init__(
+        self,
+        document: dict[str, Any],
+        intervals: int,
+        max_iter: int = 500,
+        linear_guess: bool = False,
+    ) -> None:
         import casadi as ca
 
         self.ca = ca
         self.doc = document
         self.n = intervals
+        self.max_iter = max_iter
+        self.linear_guess = linear_guess
         planet = document["planet"]
         self.radius = float(planet["radius_m"])
         self.g0 = float(planet["g0_m_s2"])
@@ -85,6 +98,15 @@ class EntryNlp:
         self.bank_max = math.radians(float(limits.get("bank_max_deg", 90.0)))
         rate = limits.get("bank_rate_max_deg_s")
         self.bank_rate_max = None if rate is None else math.radians(float(rate)) * self.t_unit
+        self.alpha_rate_max = 0.0
+        self.alpha_range = (0.0, 0.0)
+        attack = vehicle.get("angle_of_attack") or {}
+        self.alpha_state = attack.get("mode") == "optimized"
+        if self.alpha_state:
+            if self.bank_rate_max is None or attack.get("rate_max_deg_s") is None:
+                raise ValueError("an optimized alpha needs the bank and alpha rate limits")
+            self.alpha_range = (float(attack["min_deg"]), float(attack["max_deg"]))
+            self.alpha_rate_max = math.radians(float(attack["rate_max_deg_s"])) * self.t_unit
         self._build()
 
     # -- models (SI where the contract is SI, nondimensional states) --------------------------
@@ -95,23 +117,24 @@ class EntryNlp:
         dv = v_m_s - 4570.0
         return ca.if_else(v_m_s > 4570.0, 40.0, 40.0 - k * dv * dv)
 
-    def _forces(self, r: Any, v: Any) -> tuple[Any, Any, Any, Any]:
-        """Lift and drag accelerations (g0 units), density (kg/m^3) and speed (m/s)."""
+    def _forces(self, r: Any, v: Any, alpha_rad: Any = None) -> tuple[Any, Any, Any, Any]:
+        """Lift and drag accelerations (g0 units), density (kg/m^3) and speed (m/s); alpha from
+        the state when it is optimized, else from the velocity schedule."""
         ca = self.ca
         h = (r - 1.0) * self.radius
         rho = self.rho0 * ca.exp(-h / self.scale_height)
         v_si = v * self.v_unit
-        alpha = self._alpha_deg(v_si)
+        alpha = self._alpha_deg(v_si) if alpha_rad is None else alpha_rad * (180.0 / math.pi)
         cl = self.cl_c[0] + self.cl_c[1] * alpha + self.cl_c[2] * alpha * alpha
         cd = self.cd_c[0] + self.cd_c[1] * cl + self.cd_c[2] * cl * cl
         q_over_mass = 0.5 * rho * v_si * v_si * self.area_over_mass / self.g0
         return q_over_mass * cl, q_over_mass * cd, rho, v_si
 
-    def _rates(self, x: Any, bank: Any) -> Any:
+    def _rates(self, x: Any, bank: Any, alpha: Any = None) -> Any:
         """d/dt of [r, theta, phi, V, gamma, psi] (paper 000 eq. 1, nondimensional)."""
         ca = self.ca
         r, _, phi, v, gam, psi = (x[i] for i in range(6))
-        lift, drag, _, _ = self._forces(r, v)
+        lift, drag, _, _ = self._forces(r, v, alpha)
         w = self.omega
         sg, cg, sp, cp, sf, cf = (
             ca.sin(gam),
@@ -142,7 +165,7 @@ class EntryNlp:
     def _path(self, x: Any) -> dict[str, Any]:
         """Heat rate (W/m^2), dynamic pressure (Pa), load factor (g)."""
         ca = self.ca
-        lift, drag, rho, v_si = self._forces(x[0], x[3])
+        lift, drag, rho, v_si = self._forces(x[0], x[3], x[7] if self.alpha_state else None)
         heat = self.doc.get("path_constraints", {}).get("heat_rate") or {}
         k_q = float(heat.get("k_q", 0.0))
         return {
@@ -157,19 +180,22 @@ class EntryNlp:
         doc, n = self.doc, self.n
         opti = ca.Opti()
         rate_state = self.bank_rate_max is not None
-        nx = 7 if rate_state else 6
+        nu = 2 if self.alpha_state else 1
+        nx = 6 + nu if rate_state else 6
         X = opti.variable(nx, n + 1)  # nodes
         Xm = opti.variable(nx, n)  # midpoints
-        U = opti.variable(1, n + 1)
-        Um = opti.variable(1, n)
+        U = opti.variable(nu, n + 1)
+        Um = opti.variable(nu, n)
         final = doc.get("final_time") or {}
         fixed_tf = final.get("kind") == "fixed"
         tf = float(final["value_s"]) / self.t_unit if fixed_tf else opti.variable()
         h = tf / n
 
         def f(x: Any, u: Any) -> Any:
-            """The collocated rates: the point-mass rates and, with a rate limit, the bank's."""
-            rates = self._rates(x, x[6] if rate_state else u)
+            """The collocated rates: the point-mass rates and, with a rate limit, the bank's
+            (and alpha's, when it is optimized)."""
+            alpha = x[7] if self.alpha_state else None
+            rates = self._rates(x, x[6] if rate_state else u, alpha)
             return ca.vertcat(rates, u) if rate_state else rates
 
         heat_terms = []
@@ -181,10 +207,10 @@ class EntryNlp:
         }
         zones = doc.get("no_fly_zones") or []
         node_path = [self._path(X[:, k]) for k in range(n + 1)]
-        rates = [f(X[:, k], U[k]) for k in range(n + 1)]
+        rates = [f(X[:, k], U[:, k]) for k in range(n + 1)]
         mid_path = []
         for k in range(n):
-            fk, fk1, fm = rates[k], rates[k + 1], f(Xm[:, k], Um[k])
+            fk, fk1, fm = rates[k], rates[k + 1], f(Xm[:, k], Um[:, k])
             opti.subject_to(Xm[:, k] == 0.5 * (X[:, k] + X[:, k + 1]) + h / 8.0 * (fk - fk1))
             opti.subject_to(X[:, k + 1] - X[:, k] == h / 6.0 * (fk + 4.0 * fm + fk1))
             mid = self._path(Xm[:, k])
@@ -221,7 +247,12 @@ class EntryNlp:
             opti.subject_to(opti.bounded(-self.bank_max, b, self.bank_max))
         if rate_state:
             for u in (U, Um):
-                opti.subject_to(opti.bounded(-self.bank_rate_max, u, self.bank_rate_max))
+                opti.subject_to(opti.bounded(-self.bank_rate_max, u[0, :], self.bank_rate_max))
+        if self.alpha_state:
+            lo, hi = (math.radians(a) for a in self.alpha_range)
+            for cols, u in ((X, U), (Xm, Um)):
+                opti.subject_to(opti.bounded(lo, cols[7, :], hi))
+                opti.subject_to(opti.bounded(-self.alpha_rate_max, u[1, :], self.alpha_rate_max))
         for cols in (X, Xm):
             opti.subject_to(cols[0, :] >= 1.0)
             opti.subject_to(cols[3, :] >= 0.01)
@@ -248,6 +279,11 @@ class EntryNlp:
         if name == "max_terminal_velocity":
             opti.minimize(-X[3, n])
             self._value = lambda sol: float(sol.value(X[3, n])) * self.v_unit
+        elif name == "min_time":
+            if fixed_tf:
+                raise ValueError("minimum time needs a free final time")
+            opti.minimize(tf)
+            self._value = lambda sol: float(sol.value(tf)) * self.t_unit
         elif name == "min_heat_load":
             load = ca.sum1(ca.vertcat(*heat_terms)) * self.t_unit / 1.0e6  # MJ/m^2
             opti.minimize(load)
@@ -257,7 +293,7 @@ class EntryNlp:
         opti.solver(
             "ipopt",
             {"print_time": False},
-            {"print_level": 0, "sb": "yes", "max_iter": 500, "tol": 1e-8},
+            {"print_level": 0, "sb": "yes", "max_iter": self.max_iter, "tol": 1e-8},
         )
         self.opti, self.X, self.Xm, self.U, self.Um = opti, X, Xm, U, Um
         self.tf = tf
@@ -281,7 +317,8 @@ class EntryNlp:
         ca = self.ca
         x = ca.MX.sym("x", 6)
         b = ca.MX.sym("b")
-        rhs = ca.Function("rhs", [x, b], [self._rates(x, b)])
+        alpha = math.radians(GUESS_ALPHA_DEG) if self.alpha_state else None
+        rhs = ca.Function("rhs", [x, b], [self._rates(x, b, alpha)])
         init = self._nd_state(self.doc["initial_state"])
         terminal = self.doc["terminal"]
         h_target = _target(terminal, "altitude_m")
@@ -326,10 +363,20 @@ class EntryNlp:
         tm = 0.5 * (tn[:-1] + tn[1:])
         nodes = np.array([np.interp(tn, t, arr[:, i]) for i in range(6)])
         mids = np.array([np.interp(tm, t, arr[:, i]) for i in range(6)])
+        if self.linear_guess:  # straight from the initial state to each fixed terminal target
+            for i, name in enumerate(STATE_NAMES):
+                target = _target(terminal, name)
+                if target is not None:
+                    end = self._nd_value(i, target)
+                    nodes[i] = init[i] + (end - init[i]) * tn / span
+                    mids[i] = init[i] + (end - init[i]) * tm / span
         opti = self.opti
         if self.rate_state:
             nodes = np.vstack([nodes, np.full(self.n + 1, bank)])
             mids = np.vstack([mids, np.full(self.n, bank)])
+            if self.alpha_state:
+                nodes = np.vstack([nodes, np.full(self.n + 1, alpha)])
+                mids = np.vstack([mids, np.full(self.n, alpha)])
             opti.set_initial(self.U, 0.0)
             opti.set_initial(self.Um, 0.0)
         else:
