@@ -173,11 +173,11 @@ class HpScp:
         self.extra: dict[str, Any] = {}
         self.pending: _Pending | None = None
         self.steered: float | None = None
+        """The virtual-control weight the last subproblem's multipliers call for (None: the
+        schedule's)."""
         self.between_on = options.between_points == "always"
         """Whether the attitude's bounds hold between the points and the path limits are
         sampled there (``subproblem._between_points``)."""
-        """The virtual-control weight the last subproblem's multipliers call for (None: the
-        schedule's)."""
         self.cols: Columns | None = None
         self.objective: ObjectiveWeights | None = None
 
