@@ -145,6 +145,8 @@ class PolynomialSamples:
 
     between_idx: Array
     between: Array
+    between_owner: Array
+    """The point nearest each ``between`` sample (the largest of its Lagrange coefficients)."""
     hull_idx: Array
     hull: Array
     slope_idx: Array
@@ -174,9 +176,12 @@ class PolynomialSamples:
                 parts[key + "i"].append(np.tile(padded, (rows.shape[0], 1)))
                 parts[key].append(np.pad(rows, ((0, 0), (0, pad))))
         out = {k: np.concatenate(v) for k, v in parts.items()}
+        between_idx = out["bi"].astype(np.int64)
+        owner = between_idx[np.arange(between_idx.shape[0]), np.argmax(out["b"], axis=1)]
         return cls(
-            out["bi"].astype(np.int64),
+            between_idx,
             out["b"],
+            owner,
             out["hi"].astype(np.int64),
             out["h"],
             out["si"].astype(np.int64),

@@ -64,28 +64,19 @@ class Linearization:
     zone_lat: Array  # (Z, K)
     zone_lon: Array  # (Z, K)
     between: PathRows | None = None
-    """The path rows at the states interpolated between the points (the pattern's value
-    samples), each sharing the slack of its nearest point (``between_owner``)."""
+    """The path rows at the states interpolated between the points (the pattern's
+    ``samples.between``), each sharing the slack of its nearest point (``between_owner``)."""
+    between_owner: Array | None = None
+    """The nearest point of each between-point sample (``PolynomialSamples.between_owner``)."""
 
     def path_excess(self) -> Array:
         """(L, K) excess of each path limit owned by each point: the larger of its own and of
         the between-point samples it owns, at least 0 (an L-infinity penalty locally)."""
         excess = np.maximum(self.path.g, 0.0)
-        if self.between is not None and self.between.g.size:
-            owner = self.between_owner
+        if self.between is not None and self.between_owner is not None and self.between.g.size:
             for i in range(excess.shape[0]):
-                np.maximum.at(excess[i], owner, np.maximum(self.between.g[i], 0.0))
+                np.maximum.at(excess[i], self.between_owner, np.maximum(self.between.g[i], 0.0))
         return excess
-
-    @property
-    def between_owner(self) -> Array:
-        """The nearest point of each between-point sample."""
-        assert self.between_samples is not None
-        idx, coef = self.between_samples
-        return idx[np.arange(idx.shape[0]), np.argmax(coef, axis=1)]
-
-    between_samples: tuple[Array, Array] | None = None
-    """(point indices, Lagrange coefficients) of the samples of ``between``."""
 
 
 def path_rows(problem: EntryProblem, z: Array, dyn: AlphaBankStateDerivatives) -> PathRows:
@@ -149,7 +140,7 @@ def linearize(problem: EntryProblem, ref: HpIterate, jacobians: bool = True) -> 
     for i, zone in enumerate(zones):
         d = zone_distance(ref.z[:, PHI], ref.z[:, THETA], zone)
         zc[i], zlat[i], zlon[i] = d.c - zone.radius, d.c_lat, d.c_lon
-    between, samples = None, None
+    between, owner = None, None
     if path.g.size:
         sample = ref.pattern.samples
         z_s = np.einsum("sj,sja->sa", sample.between, ref.z[sample.between_idx])
@@ -162,8 +153,8 @@ def linearize(problem: EntryProblem, ref: HpIterate, jacobians: bool = True) -> 
             jacobians=False,
         )
         between = path_rows(problem, z_s, dyn_s)
-        samples = (sample.between_idx, sample.between)
-    return Linearization(dyn, defects, path, zc, zlat, zlon, between, samples)
+        owner = sample.between_owner
+    return Linearization(dyn, defects, path, zc, zlat, zlon, between, owner)
 
 
 def finite(lin: Linearization) -> bool:

@@ -305,7 +305,7 @@ class HpScp:
             self.w_vc = min(self.w_vc, self.steered)
         problem, self.cols = self._build(reference, linearization, hold_time=self.holding)
         self.q, self.P = problem.q, problem.P
-        self.reference_defect = float(np.max(np.abs(linearization.defects) / self.units.z[None, :]))
+        self.reference_linearization = linearization
         self.state.cost = self.penalized(reference, linearization)  # at this iteration's weight
         return problem
 
@@ -393,9 +393,7 @@ class HpScp:
         for _ in range(self.options.second_order_corrections):
             if not finite(candidate):
                 break
-            if float(np.max(np.abs(candidate.defects) / self.units.z[None, :])) <= (
-                self.options.defect_tolerance
-            ):
+            if self._defect(candidate) <= self.options.defect_tolerance:
                 break
             problem, cols = self._build(new, candidate, hold_time=True)
             solution = self._conic(problem, self._limit)
@@ -410,6 +408,10 @@ class HpScp:
             new, candidate = trial, lin
             passes += 1
         return new, candidate, passes
+
+    def _defect(self, lin: Linearization) -> float:
+        """The largest nonlinear collocation defect of ``lin`` (trust units)."""
+        return float(np.max(np.abs(lin.defects) / self.units.z[None, :]))
 
     def violation(self, ref: HpIterate, lin: Linearization) -> float:
         """The constraint violation of paper 003's filter: scaled L1 of the collocation defects,
@@ -546,7 +548,7 @@ class HpScp:
         slack = x[self.cols.nu_plus :]
         virtual = float(np.max(slack)) if slack.size else 0.0
         small_step = bool(np.all(change <= self.tol_z) and abs(dtf) <= self.tol_t)
-        defect = float(np.max(np.abs(candidate.defects) / self.units.z[None, :]))
+        defect = self._defect(candidate)
         sc = self.problem.scales
         terms = self._term_values(new)
         record = IterationRecord(
@@ -599,13 +601,13 @@ class HpScp:
         if (
             ratio < RATIO_REJECT
             and predicted <= STALL_RELATIVE * max(1.0, abs(state.cost))
-            and self.reference_defect <= self.options.defect_tolerance
+            and self._defect(self.reference_linearization) <= self.options.defect_tolerance
         ):
             # the model sees no progress worth a step and the step it offers fails: the
             # reference is stationary on this mesh (kept, and judged as converged)
             record.extra["rejected"] = f"stationary: predicted decrease {predicted:.3g}"
             proposal.reference = reference
-            pending.linearization = linearize(self.problem, reference)
+            pending.linearization = self.reference_linearization
             return self._accept(proposal, pending, True)
         if ratio < RATIO_REJECT and not (pending.small_step and defect_ok):
             state.weight = min(state.weight * 2.0, TRUST_WEIGHT_MAX)

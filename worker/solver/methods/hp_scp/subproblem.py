@@ -262,8 +262,8 @@ def build(
             -path.g[i],
         )
     between = lin.between if between_points else None
-    if between is not None and lin.between_samples is not None and between.g.size:
-        idx, coef = lin.between_samples
+    if between is not None and lin.between_owner is not None and between.g.size:
+        idx, coef = pat.samples.between_idx, pat.samples.between
         owner = lin.between_owner
         n_s, width = idx.shape
         rows_s = np.repeat(np.arange(n_s), 3 * width + 1)
