@@ -19,7 +19,7 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from app.settings import ConfigurationError, Settings, load_settings
 
@@ -91,6 +91,21 @@ def _build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--nodes", type=_int, help="number of discretization nodes")
     solve.add_argument("-o", "--output", help="write the result document to this JSON file")
     solve.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+    solve.add_argument(
+        "--csv", help="also write the trajectory as CSV (one row per node, units in the header)"
+    )
+
+    plot = sub.add_parser("plot", help="render the plots of a result document (PNG or SVG)")
+    plot.add_argument("result", help="a result document (trajopt solve -o, or GET /result)")
+    plot.add_argument("-o", "--output", required=True, help="directory for the plot files")
+    plot.add_argument(
+        "--format",
+        dest="formats",
+        action="append",
+        choices=("png", "svg"),
+        help="file format (repeatable; default png)",
+    )
+    plot.add_argument("--only", action="append", metavar="NAME", help="only these plots")
 
     serve = sub.add_parser("serve", help="run the HTTP API")
     serve.add_argument("--host", default=None, help="bind address (default from settings)")
@@ -173,7 +188,19 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command in ("scenarios", "solve"):
         from worker.solver import cli as solver_cli
 
-        return solver_cli.run(args)
+        def csv_table(result: dict[str, Any]) -> str:
+            from app.report import trajectory_csv
+
+            return trajectory_csv(result)
+
+        return solver_cli.run(args, csv_table)
+    if args.command == "plot":
+        from app.report.files import plot_command
+
+        try:
+            return plot_command(args.result, args.output, args.formats or ["png"], args.only)
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
     if args.command == "serve":
         return _serve(args)
     if args.command == "worker":

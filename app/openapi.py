@@ -56,6 +56,14 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
         422: ["invalid_problem", "invalid_request", "over_server_cap"]
     },
     ("get", "/v1/jobs/{job_id}/result"): {409: ["job_not_finished", "result_unavailable"]},
+    ("get", "/v1/jobs/{job_id}/trajectory.csv"): {
+        409: ["job_not_finished", "result_unavailable", "no_trajectory"]
+    },
+    ("get", "/v1/jobs/{job_id}/plots"): {409: ["job_not_finished", "result_unavailable"]},
+    ("get", "/v1/jobs/{job_id}/plots/{name}.{fmt}"): {
+        404: ["job_not_found", "plot_not_found", "plot_format_not_found"],
+        409: ["job_not_finished", "result_unavailable"],
+    },
     ("delete", "/v1/jobs/{job_id}"): {409: ["job_finished"]},
     ("get", "/v1/jobs/{job_id}/events"): {429: ["rate_limited", "too_many_streams"]},
     ("get", "/readyz"): {503: ["not_ready"]},

@@ -162,6 +162,29 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
             "on request before it started",
         },
     ),
+    "no_trajectory": _error(
+        409,
+        "the result holds no trajectory",
+        {"code": "no_trajectory", "message": f"job {JOB_ID}: the result has no trajectory"},
+    ),
+    "plot_not_found": _error(
+        404,
+        "no plot of that name for this result",
+        {
+            "code": "plot_not_found",
+            "field": "name",
+            "message": f"job {JOB_ID} has no plot 'ground-track'; its plots: convergence",
+        },
+    ),
+    "plot_format_not_found": _error(
+        404,
+        "no such plot format",
+        {
+            "code": "plot_format_not_found",
+            "field": "fmt",
+            "message": "no plot format 'jpg'; formats: png, svg",
+        },
+    ),
     "job_finished": _error(
         409,
         "nothing left to cancel",

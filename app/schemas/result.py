@@ -320,6 +320,22 @@ class ZoneClearance(_Record):
     min_clearance_deg: Number = Field(..., description="Great-circle clearance, deg.")
     min_clearance_km: Number = Field(..., description="The same on the surface, km.")
     within: bool = Field(..., description="Clearance >= -no_fly_zone_deg.")
+    latitude_deg: Number = Field(None, description="The zone's centre latitude, deg.")
+    longitude_deg: Number = Field(None, description="The zone's centre longitude, deg.")
+    radius_deg: Number = Field(None, description="The zone's radius, deg of arc.")
+    metric: str | None = Field(
+        None,
+        description="great_circle (radius along the sphere) or lat_lon (a circle in the "
+        "latitude-longitude plane, paper 002 eq. 27).",
+    )
+
+
+class PropagatedPath(Trajectory):
+    """The propagated flight on the verification's dense grid (about 20 samples between nodes,
+    thinned to at most about 1 000 rows with every reported peak kept): the same columns and
+    units as the optimized trajectory, for overlaying one on the other."""
+
+    samples: int | None = Field(None, description="Number of rows (length of every column).")
 
 
 class Verification(_Record):
@@ -350,6 +366,11 @@ class Verification(_Record):
     )
     heat_load_J_m2: Number = Field(
         None, description="Integrated heat rate of the propagation, J/m^2 (null: no heat model)."
+    )
+    propagated: PropagatedPath | None = Field(
+        None,
+        description="The propagated flight between and at the nodes (what the checks read), "
+        "as columns.",
     )
 
 

@@ -32,6 +32,12 @@ VOLATILE_KEYS = frozenset(
 )
 """Wall-clock figures and the environment: not outputs of the arithmetic."""
 
+LEFT_OUT_KEYS = frozenset({"propagated"})
+"""Arithmetic the recordings leave out for their size: the verification's dense propagated
+flight (about 200 kB a case), drawn from the same propagation whose final state, deviations,
+path and control peaks and zone clearances are recorded (and which keeps every peak's row;
+tests/unit/test_report.py)."""
+
 
 def _with(scenario: str, method: dict[str, Any], **extra: Any) -> dict[str, Any]:
     doc = copy.deepcopy(get_scenario(scenario).problem)
@@ -71,7 +77,11 @@ def cases() -> dict[str, dict[str, Any]]:
 def _strip(value: Any) -> Any:
     """The document without its volatile entries; non-finite floats as strings (JSON)."""
     if isinstance(value, dict):
-        return {k: _strip(v) for k, v in value.items() if k not in VOLATILE_KEYS}
+        return {
+            k: _strip(v)
+            for k, v in value.items()
+            if k not in VOLATILE_KEYS and k not in LEFT_OUT_KEYS
+        }
     if isinstance(value, list):
         return [_strip(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):

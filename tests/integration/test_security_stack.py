@@ -31,7 +31,8 @@ def test_clients_are_isolated_and_a_revoked_key_is_refused_at_once(
     try:
         job = a.submit({"scenario": scenario, "method": {"nodes": 41, "max_iterations": 3}})
         a.wait_finished(job["id"])
-        for suffix in ("", "/result", "/history", "/events"):
+        own = ("", "/result", "/history", "/events", "/trajectory.csv", "/plots")
+        for suffix in (*own, "/plots/convergence.png"):
             response = b.http.get(f"/v1/jobs/{job['id']}{suffix}")
             assert response.status_code == 404, (suffix, response.text)
         assert b.http.delete(f"/v1/jobs/{job['id']}").status_code == 404

@@ -160,7 +160,8 @@ def test_own_time_limit_ends_timed_out_with_history(client: ServiceClient, scena
 
 
 def test_unknown_ids_and_invalid_problems(client: ServiceClient, scenario: str) -> None:
-    for path in ("", "/result", "/history", "/events"):
+    paths = ("/result", "/history", "/events", "/trajectory.csv", "/plots", "/plots/states.svg")
+    for path in ("", *paths):
         response = client.http.get(f"/v1/jobs/4b0c3e1e-0000-4000-8000-000000000000{path}")
         assert response.status_code == 404
         assert response.json()["error"]["code"] == "job_not_found"

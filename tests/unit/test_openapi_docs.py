@@ -268,6 +268,10 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
         "job_not_finished": lambda: default.get(f"/v1/jobs/{queued()}/result"),
         "result_unavailable": lambda: default.get(f"/v1/jobs/{cancelled()}/result"),
         "job_finished": lambda: default.delete(f"/v1/jobs/{succeeded()}"),
+        # a result with a history and no trajectory: its only plot is the convergence
+        "no_trajectory": lambda: default.get(f"/v1/jobs/{succeeded()}/trajectory.csv"),
+        "plot_not_found": lambda: default.get(f"/v1/jobs/{succeeded()}/plots/ground-track.png"),
+        "plot_format_not_found": lambda: default.get(f"/v1/jobs/{succeeded()}/plots/states.jpg"),
         "body_too_large": lambda: default.post(
             "/v1/jobs", content=b" " * (limit + 1), headers=JSON
         ),

@@ -12,7 +12,7 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -59,11 +59,12 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or str(exc) or type(exc).__name__
 
 
-def read_problem_file(source: str) -> dict[str, Any]:
-    """The problem document in the file ``source`` (a scenario file gives its ``problem``)."""
+def read_json_file(source: str, what: str) -> Any:
+    """The JSON value in the file ``source``; InputError in one line (``what`` names the kind of
+    file a directory is not) when it cannot be read or decoded."""
     path = Path(source)
     if _is(path, "is_dir"):
-        raise InputError(f"{source} is a directory, not a problem file")
+        raise InputError(f"{source} is a directory, not {what}")
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -75,13 +76,18 @@ def read_problem_file(source: str) -> dict[str, Any]:
     except OSError as exc:
         raise InputError(f"cannot read {source}: {os_reason(exc)}") from None
     try:
-        raw = json.loads(text)
+        return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(
             f"{source}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
         ) from None
     except RecursionError:
         raise InputError(f"{source}: invalid JSON: nested too deeply") from None
+
+
+def read_problem_file(source: str) -> dict[str, Any]:
+    """The problem document in the file ``source`` (a scenario file gives its ``problem``)."""
+    raw = read_json_file(source, "a problem file")
     if isinstance(raw, dict) and "problem" in raw and "vehicle" not in raw:
         raw = raw["problem"]  # a scenario file
         if not isinstance(raw, dict):
@@ -144,14 +150,18 @@ def check_output(output: str) -> None:
         raise InputError(f"cannot write output {output}: no permission to create files in {parent}")
 
 
-def write_result(output: str, result: dict[str, Any]) -> None:
-    """Write the result document to ``output``; ``InputError`` with the reason when it fails."""
-    text = json.dumps(result, indent=1)
+def write_text(output: str, text: str, what: str) -> None:
+    """Write ``text`` to ``output``; ``InputError`` naming ``what`` and the reason on failure."""
     try:
         with open(output, "w", encoding="utf-8") as handle:
             handle.write(text)
     except OSError as exc:
-        raise InputError(f"cannot write the result to {output}: {os_reason(exc)}") from None
+        raise InputError(f"cannot write {what} to {output}: {os_reason(exc)}") from None
+
+
+def write_result(output: str, result: dict[str, Any]) -> None:
+    """Write the result document to ``output``; ``InputError`` with the reason when it fails."""
+    write_text(output, json.dumps(result, indent=1), "the result")
 
 
 def issue_lines(prefix: str, issues: Sequence[FieldIssue]) -> list[str]:
@@ -252,10 +262,16 @@ def _apply_overrides(raw: dict[str, Any], args: argparse.Namespace) -> None:
         raw["method"] = method
 
 
-def _solve(args: argparse.Namespace) -> int:
-    """Check the output path, load and validate the problem, solve, report; the exit code."""
-    if args.output:
-        check_output(args.output)
+CsvTable = Callable[[dict[str, Any]], str]
+"""Turns a result document into the CSV text of its trajectory (given by the command line)."""
+
+
+def _solve(args: argparse.Namespace, csv_table: CsvTable | None) -> int:
+    """Check the output paths, load and validate the problem, solve, report; the exit code."""
+    csv_path = getattr(args, "csv", None)
+    for output in (args.output, csv_path):
+        if output:
+            check_output(output)
     raw = load_problem(args.problem)
     _apply_overrides(raw, args)
 
@@ -288,17 +304,24 @@ def _solve(args: argparse.Namespace) -> int:
     if args.output:
         write_result(args.output, result)
         print(f"result written to {args.output}", file=sys.stderr)
+    if csv_path and csv_table is not None:
+        if result.get("trajectory") is None:
+            print(f"no trajectory: {csv_path} not written", file=sys.stderr)
+            return code or 1
+        write_text(csv_path, csv_table(result), "the trajectory")
+        print(f"trajectory written to {csv_path}", file=sys.stderr)
     return code
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the ``scenarios`` or ``solve`` subcommand; returns the exit code."""
+def run(args: argparse.Namespace, csv_table: CsvTable | None = None) -> int:
+    """Run the ``scenarios`` or ``solve`` subcommand; returns the exit code. ``csv_table``
+    writes ``--csv`` (the command line passes it in: the CSV form is not the solver's)."""
     if args.command == "scenarios":
         for line in scenario_table(list_scenarios()):
             print(line)
         return 0
     try:
-        return _solve(args)
+        return _solve(args, csv_table)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

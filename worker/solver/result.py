@@ -20,23 +20,9 @@ from worker.solver.problem import EntryProblem
 from worker.solver.scp.history import IterationRecord
 from worker.solver.scp.loop import VIRTUAL_CONTROL_TOL
 from worker.solver.trajectory import OptimizedTrajectory
+from worker.solver.units import COLUMN_UNITS
 from worker.solver.verification import VerificationTolerances
 
-UNITS = {
-    "time_s": "s",
-    "altitude_m": "m",
-    "longitude_deg": "deg",
-    "latitude_deg": "deg",
-    "velocity_m_s": "m/s",
-    "flight_path_angle_deg": "deg",
-    "heading_deg": "deg",
-    "bank_deg": "deg",
-    "alpha_deg": "deg",
-    "heat_rate_W_m2": "W/m^2",
-    "dynamic_pressure_Pa": "Pa",
-    "load_factor_g": "g0",
-    "energy": "1 (e = R0/r - V^2/(2 g0 R0))",
-}
 PACKAGES = ("numpy", "scipy", "clarabel", "cvxpy", "pydantic", "entry-trajopt")
 
 
@@ -63,7 +49,7 @@ def trajectory_columns(problem: EntryProblem, traj: OptimizedTrajectory) -> dict
     if traj.grid_kind == "energy":
         cols["energy"] = traj.grid.tolist()
     cols = {k: v for k, v in cols.items() if v is not None}
-    cols["units"] = {k: UNITS[k] for k in cols}
+    cols["units"] = {k: COLUMN_UNITS[k] for k in cols}
     cols["nodes"] = int(y.shape[0])
     return cols
 

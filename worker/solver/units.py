@@ -5,6 +5,23 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+COLUMN_UNITS = {
+    "time_s": "s",
+    "altitude_m": "m",
+    "longitude_deg": "deg",
+    "latitude_deg": "deg",
+    "velocity_m_s": "m/s",
+    "flight_path_angle_deg": "deg",
+    "heading_deg": "deg",
+    "bank_deg": "deg",
+    "alpha_deg": "deg",
+    "heat_rate_W_m2": "W/m^2",
+    "dynamic_pressure_Pa": "Pa",
+    "load_factor_g": "g0",
+    "energy": "1 (e = R0/r - V^2/(2 g0 R0))",
+}
+"""The unit of each named column of a trajectory (optimized nodes or the propagated flight)."""
+
 
 @dataclass(frozen=True)
 class Scales:

@@ -38,6 +38,7 @@ from worker.solver.trajectory import (
     bank_profile_at,
     bank_rate_at,
 )
+from worker.solver.units import COLUMN_UNITS
 
 StopCheck = Callable[[], bool]
 
@@ -48,6 +49,9 @@ times below the tolerances it checks (500 m, 10 m/s, 0.1 deg; docs/methods/READM
 ATOL = 1e-12
 """Absolute tolerance of the propagation (nondimensional states)."""
 STOP_POLL_INTERVAL_S = 0.2
+MAX_PATH_SAMPLES = 1000
+"""About how many rows of the dense propagated flight a result keeps (``propagated``): enough
+for a smooth curve, few enough that a 400-node result stays well under a megabyte."""
 """How often a propagation asks its stop check (wall seconds): a cancel or a time limit ends a
 long verification within about this long, without a database read per right-hand side."""
 
@@ -396,6 +400,10 @@ def verify(
                 "min_clearance_deg": clearance_deg,
                 "min_clearance_km": clearance_deg * math.pi / 180 * sc.radius_m / 1000,
                 "within": ok,
+                "latitude_deg": math.degrees(z.latitude),
+                "longitude_deg": math.degrees(z.longitude),
+                "radius_deg": math.degrees(z.radius),
+                "metric": z.metric,
             }
         )
 
@@ -419,7 +427,56 @@ def verify(
         "no_fly_zones": zones,
         "control_limits": controls,
         "heat_load_J_m2": heat_load,
+        "propagated": propagated_columns(problem, traj, t_fine, s_fine, y_fine, ft.alpha_deg, pv),
     }
+
+
+def sample_rows(count: int, peaks: list[Array], limit: int = MAX_PATH_SAMPLES) -> Array:
+    """Indices of at most about ``limit`` of ``count`` dense samples, evenly strided, with the
+    last sample and the position of each array's maximum in ``peaks`` kept, so that a curve
+    drawn through them reaches the peaks the checks report."""
+    stride = max(1, math.ceil(count / limit))
+    keep = [np.arange(0, count, stride), np.array([count - 1])]
+    keep.extend(np.array([int(np.argmax(values))]) for values in peaks)
+    return np.unique(np.concatenate(keep))
+
+
+def propagated_columns(
+    problem: EntryProblem,
+    traj: OptimizedTrajectory,
+    t_fine: Array,
+    s_fine: Array,
+    y_fine: Array,
+    alpha_deg: Array,
+    pv: Any,
+) -> dict[str, Any]:
+    """The propagated flight on the dense grid the checks read (thinned to at most about
+    :data:`MAX_PATH_SAMPLES` rows, peaks kept) as named columns in SI units and degrees, the
+    same names as the optimized trajectory's: what a plot overlays on the nodes."""
+    sc = problem.scales
+    bank = np.degrees(bank_profile_at(traj, s_fine))
+    alpha = np.broadcast_to(np.asarray(alpha_deg, dtype=float), t_fine.shape)
+    columns: dict[str, Array | None] = {
+        "time_s": t_fine * sc.time_s + problem.t0,
+        "altitude_m": (y_fine[:, 0] - 1.0) * sc.radius_m,
+        "longitude_deg": np.degrees(y_fine[:, 1]),
+        "latitude_deg": np.degrees(y_fine[:, 2]),
+        "velocity_m_s": y_fine[:, 3] * sc.speed_m_s,
+        "flight_path_angle_deg": np.degrees(y_fine[:, 4]),
+        "heading_deg": np.degrees(y_fine[:, 5]),
+        "bank_deg": bank,
+        "alpha_deg": alpha,
+        "heat_rate_W_m2": pv.heat_rate if problem.heat_model else None,
+        "dynamic_pressure_Pa": pv.dynamic_pressure,
+        "load_factor_g": pv.load_factor,
+    }
+    present = {k: np.asarray(v, dtype=float) for k, v in columns.items() if v is not None}
+    peaks = [present[k] for k in ("heat_rate_W_m2", "dynamic_pressure_Pa", "load_factor_g")]
+    rows = sample_rows(t_fine.size, [*(p for p in peaks if p.size), np.abs(bank)])
+    out: dict[str, Any] = {k: v[rows].tolist() for k, v in present.items()}
+    out["units"] = {k: COLUMN_UNITS[k] for k in present}
+    out["samples"] = int(rows.size)
+    return out
 
 
 def _control_peaks(

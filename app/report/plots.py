@@ -1,0 +1,302 @@
+"""Plots of a result document, rendered with matplotlib's object API (no pyplot, no display, so
+concurrent requests of the service never share a figure).
+
+Each plot overlays the optimized nodes (markers) on the propagated flight of the verification
+(a line through about 20 samples between nodes): what the method promised and what the
+controls actually fly. Limits are dashed lines; no-fly zones are drawn to scale on the ground
+track (great-circle circles on an equirectangular map with the aspect of the mid latitude).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+if matplotlib.rcParams["svg.hashsalt"] is None:
+    # fixed SVG element ids (set once: rcParams are the process's, shared by every thread), so
+    # the same result renders to the same bytes
+    matplotlib.rcParams["svg.hashsalt"] = "trajopt"
+
+PLOT_FORMATS = {"png": "image/png", "svg": "image/svg+xml"}
+"""File formats a plot renders to, with their media types."""
+
+FIGURE_SIZE_IN = (8.0, 5.0)
+DPI = 100
+"""A plot is 800 x 500 pixels as PNG."""
+
+ZONE_COLOR = "#d62728"
+NODE_STYLE: dict[str, Any] = {"marker": "o", "markersize": 3.5, "linestyle": "none"}
+FLOWN_STYLE: dict[str, Any] = {"linewidth": 1.3, "color": "#1f77b4"}
+LIMIT_STYLE: dict[str, Any] = {"linestyle": "--", "color": ZONE_COLOR, "linewidth": 1.0}
+
+PATH_PLOTS = {
+    "heat-rate": ("heat_rate_W_m2", "heat rate", 1e-3, "kW/m²"),
+    "dynamic-pressure": ("dynamic_pressure_Pa", "dynamic pressure", 1e-3, "kPa"),
+    "load-factor": ("load_factor_g", "load factor", 1.0, "g0"),
+}
+"""Plot name -> (column, label, factor to the plotted unit, plotted unit)."""
+
+Result = Mapping[str, Any]
+
+
+class UnknownPlotError(KeyError):
+    """No plot of that name for this result (the message lists the available ones)."""
+
+
+def _columns(result: Result, key: str) -> dict[str, np.ndarray]:
+    """The numeric columns of the trajectory (``key`` "trajectory") or the propagated flight
+    (``key`` "propagated", inside the verification); empty when absent. Nulls become NaN."""
+    block = result.get(key) if key == "trajectory" else (result.get("verification") or {})
+    if key == "propagated":
+        block = block.get("propagated") if isinstance(block, Mapping) else None
+    if not isinstance(block, Mapping):
+        return {}
+    return {
+        name: np.array([np.nan if v is None else v for v in values], dtype=float)
+        for name, values in block.items()
+        if isinstance(values, list)
+    }
+
+
+def _overlay(
+    ax: Axes,
+    result: Result,
+    x: str,
+    y: str,
+    *,
+    x_factor: float = 1.0,
+    y_factor: float = 1.0,
+) -> None:
+    """The propagated flight (line) and the optimized nodes (markers) of column ``y`` against
+    column ``x``."""
+    flown, nodes = _columns(result, "propagated"), _columns(result, "trajectory")
+    if x in flown and y in flown:
+        ax.plot(flown[x] * x_factor, flown[y] * y_factor, label="propagated", **FLOWN_STYLE)
+    if x in nodes and y in nodes:
+        ax.plot(
+            nodes[x] * x_factor,
+            nodes[y] * y_factor,
+            label="optimized (nodes)",
+            color="#ff7f0e",
+            **NODE_STYLE,
+        )
+
+
+def _limit(ax: Axes, value: float | None, label: str) -> None:
+    """A dashed horizontal line at a limit, if there is one."""
+    if value is not None and math.isfinite(value):
+        ax.axhline(value, label=label, **LIMIT_STYLE)
+
+
+def _altitude_velocity(fig: Figure, result: Result) -> None:
+    ax = fig.add_subplot()
+    _overlay(ax, result, "velocity_m_s", "altitude_m", x_factor=1e-3, y_factor=1e-3)
+    ax.set_xlabel("velocity (km/s)")
+    ax.set_ylabel("altitude (km)")
+    ax.set_title("Altitude against velocity")
+    ax.legend(loc="best")
+
+
+def zone_outline(zone: Mapping[str, Any], points: int = 181) -> tuple[np.ndarray, np.ndarray]:
+    """Longitudes and latitudes (deg) of a no-fly zone's boundary: the points at the zone's
+    radius from its centre, along the sphere (great_circle: the destination-point formula) or
+    in the latitude-longitude plane (lat_lon)."""
+    lat0, lon0 = math.radians(zone["latitude_deg"]), math.radians(zone["longitude_deg"])
+    radius = math.radians(zone["radius_deg"])
+    bearing = np.linspace(0.0, 2.0 * math.pi, points)
+    if zone.get("metric") == "lat_lon":
+        return np.degrees(lon0 + radius * np.cos(bearing)), np.degrees(
+            lat0 + radius * np.sin(bearing)
+        )
+    lat = np.arcsin(
+        math.sin(lat0) * math.cos(radius) + math.cos(lat0) * math.sin(radius) * np.cos(bearing)
+    )
+    lon = lon0 + np.arctan2(
+        np.sin(bearing) * math.sin(radius) * math.cos(lat0),
+        math.cos(radius) - math.sin(lat0) * np.sin(lat),
+    )
+    return np.degrees(lon), np.degrees(lat)
+
+
+def _ground_track(fig: Figure, result: Result) -> None:
+    ax = fig.add_subplot()
+    zones = (result.get("verification") or {}).get("no_fly_zones") or []
+    drawn = False
+    for zone in zones:
+        if zone.get("radius_deg") is None:
+            continue  # a result stored before zones carried their geometry
+        lon, lat = zone_outline(zone)
+        ax.fill(lon, lat, color=ZONE_COLOR, alpha=0.35, label=None if drawn else "no-fly zone")
+        ax.plot(lon, lat, color=ZONE_COLOR, linewidth=1.0)
+        if zone.get("name"):
+            top = (zone["longitude_deg"], zone["latitude_deg"] + zone["radius_deg"])
+            ax.annotate(zone["name"], top, ha="center", va="bottom", fontsize="small")
+        drawn = True
+    _overlay(ax, result, "longitude_deg", "latitude_deg")
+    nodes = _columns(result, "trajectory")
+    if "latitude_deg" in nodes and nodes["latitude_deg"].size:
+        middle = math.radians(float(np.nanmean(nodes["latitude_deg"])))
+        # equal distances at the mid latitude; the data limits widen to fill the figure
+        ax.set_aspect(1.0 / max(math.cos(middle), 0.05), adjustable="datalim")
+    ax.set_xlabel("longitude (deg)")
+    ax.set_ylabel("latitude (deg)")
+    ax.set_title("Ground track")
+    ax.legend(loc="best")
+
+
+def _states(fig: Figure, result: Result) -> None:
+    panels = (
+        ("altitude_m", "altitude (km)", 1e-3),
+        ("velocity_m_s", "velocity (km/s)", 1e-3),
+        ("flight_path_angle_deg", "flight-path angle (deg)", 1.0),
+        ("heading_deg", "heading (deg)", 1.0),
+    )
+    axes = fig.subplots(2, 2, sharex=True)
+    for ax, (column, label, factor) in zip(axes.flat, panels, strict=True):
+        _overlay(ax, result, "time_s", column, y_factor=factor)
+        ax.set_ylabel(label)
+    for ax in axes[1]:
+        ax.set_xlabel("time (s)")
+    axes[0][0].legend(loc="best", fontsize="small")
+    fig.suptitle("States against time")
+
+
+def _controls(fig: Figure, result: Result) -> None:
+    limits = (result.get("verification") or {}).get("control_limits") or {}
+    nodes = _columns(result, "trajectory")
+    show_alpha = "alpha_deg" in nodes and np.ptp(np.nan_to_num(nodes["alpha_deg"])) > 0.0
+    axes = fig.subplots(2 if show_alpha else 1, 1, sharex=True, squeeze=False)[:, 0]
+    bank = axes[0]
+    _overlay(bank, result, "time_s", "bank_deg")
+    high = (limits.get("bank_deg") or {}).get("limit")
+    low = (limits.get("bank_min_deg") or {}).get("limit")
+    _limit(bank, high, "bank limits")
+    _limit(bank, low if low is not None else (-high if high is not None else None), "_")
+    bank.set_ylabel("bank (deg)")
+    rate = limits.get("bank_rate_deg_s")
+    title = "Controls against time"
+    if rate:
+        title += f" (largest flown bank rate {rate['max']:.3g} of {rate['limit']:.3g} deg/s)"
+    if show_alpha:
+        alpha = axes[1]
+        _overlay(alpha, result, "time_s", "alpha_deg")
+        for key in ("alpha_max_deg", "alpha_min_deg"):
+            _limit(alpha, (limits.get(key) or {}).get("limit"), "_")
+        alpha.set_ylabel("angle of attack (deg)")
+    axes[-1].set_xlabel("time (s)")
+    bank.legend(loc="best", fontsize="small")
+    fig.suptitle(title)
+
+
+def _path_plot(name: str) -> Callable[[Figure, Result], None]:
+    column, label, factor, unit = PATH_PLOTS[name]
+
+    def draw(fig: Figure, result: Result) -> None:
+        ax = fig.add_subplot()
+        _overlay(ax, result, "time_s", column, y_factor=factor)
+        peak = ((result.get("verification") or {}).get("path_maxima") or {}).get(column) or {}
+        limit = peak.get("limit")
+        _limit(ax, None if limit is None else limit * factor, "limit")
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"{label} ({unit})")
+        ratio = peak.get("ratio")
+        suffix = f": propagated peak {ratio:.4f} of the limit" if ratio is not None else ""
+        ax.set_title(f"{label[0].upper()}{label[1:]}{suffix}")
+        ax.legend(loc="best")
+
+    return draw
+
+
+def _convergence(fig: Figure, result: Result) -> None:
+    history = result.get("history") or []
+    index = np.arange(1, len(history) + 1)
+
+    def series(read: Callable[[Mapping[str, Any]], Any]) -> np.ndarray:
+        values = []
+        for record in history:
+            value = read(record)
+            values.append(np.nan if value is None else float(value))
+        return np.array(values, dtype=float)
+
+    axes = fig.subplots(2, 2, sharex=True)
+    cost = series(lambda r: r.get("objective_value", r.get("cost")))
+    if np.all(np.isnan(cost)):
+        cost = series(lambda r: r.get("cost"))
+    axes[0][0].plot(index, cost, marker=".")
+    axes[0][0].set_ylabel("objective")
+    changes: dict[str, list[float]] = {}
+    for record in history:
+        for state, value in (record.get("max_state_change") or {}).items():
+            changes.setdefault(state, []).append(np.nan if value is None else abs(float(value)))
+    for state, values in changes.items():
+        if len(values) == len(history):
+            axes[0][1].semilogy(index, np.maximum(values, 1e-16), label=state)
+    axes[0][1].set_ylabel("max state change (SI, deg)")
+    if changes:
+        axes[0][1].legend(fontsize="x-small", loc="best")
+    virtual = series(lambda r: r.get("virtual_control_norm"))
+    axes[1][0].semilogy(index, np.maximum(virtual, 1e-16), marker=".")
+    axes[1][0].set_ylabel("virtual control (scaled)")
+    weight = series(lambda r: (r.get("extra") or {}).get("weight_trust_region"))
+    if not np.all(np.isnan(weight)):
+        axes[1][1].semilogy(index, weight, marker=".")
+    axes[1][1].set_ylabel("trust-region weight")
+    starts = series(lambda r: (r.get("extra") or {}).get("start"))
+    for ax in axes.flat:
+        for boundary in index[1:][np.diff(starts) != 0]:
+            ax.axvline(boundary - 0.5, color="grey", linewidth=0.8, linestyle=":")
+    for ax in axes[1]:
+        ax.set_xlabel("iteration (all starts in order)")
+    fig.suptitle("Convergence")
+
+
+PLOTS: dict[str, Callable[[Figure, Result], None]] = {
+    "altitude-velocity": _altitude_velocity,
+    "ground-track": _ground_track,
+    "states": _states,
+    "controls": _controls,
+    **{name: _path_plot(name) for name in PATH_PLOTS},
+    "convergence": _convergence,
+}
+"""Every plot a result can have, by name, in the order they are listed."""
+
+
+def available_plots(result: Result) -> list[str]:
+    """The names of the plots ``result`` has data for: the trajectory's (when there is one),
+    each path quantity the problem defines, and the convergence (when there is a history)."""
+    nodes = _columns(result, "trajectory")
+    names: list[str] = []
+    if nodes:
+        names += ["altitude-velocity", "ground-track", "states", "controls"]
+        names += [name for name, spec in PATH_PLOTS.items() if spec[0] in nodes]
+    if result.get("history"):
+        names.append("convergence")
+    return names
+
+
+def figure(result: Result, name: str) -> Figure:
+    """The figure of plot ``name`` for ``result``; UnknownPlotError when it has none."""
+    if name not in available_plots(result):
+        raise UnknownPlotError(name)
+    fig = Figure(figsize=FIGURE_SIZE_IN, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)  # its own raster canvas: no pyplot, no global backend
+    PLOTS[name](fig, result)
+    return fig
+
+
+def render_plot(result: Result, name: str, fmt: str) -> bytes:
+    """Plot ``name`` of ``result`` as ``fmt`` (a key of :data:`PLOT_FORMATS`) bytes."""
+    if fmt not in PLOT_FORMATS:
+        raise ValueError(f"format must be one of {sorted(PLOT_FORMATS)}, got {fmt!r}")
+    buffer = io.BytesIO()
+    metadata = {"Date": None} if fmt == "svg" else {}  # no creation date in the file
+    figure(result, name).savefig(buffer, format=fmt, dpi=DPI, metadata=metadata)
+    return buffer.getvalue()
