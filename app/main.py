@@ -22,7 +22,7 @@ from app.metrics import build_registry
 from app.middleware import BodySizeLimit
 from app.openapi import install_openapi
 from app.ratelimit import MemoryRateLimiter, RateLimiter, RedisRateLimiter
-from app.routes import catalog, events, health, jobs, problems, report
+from app.routes import catalog, events, health, jobs, problems, report, ui
 from app.settings import Settings, get_settings
 from app.state import ServiceState
 from app.storage.migrate import upgrade_database
@@ -163,6 +163,7 @@ def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None =
             module.router, dependencies=[Depends(get_owner)], responses=_V1_RESPONSES
         )
     app.include_router(health.router)
+    app.include_router(ui.router)
     install_openapi(app)
     if settings.cors_origin_list:
         app.add_middleware(

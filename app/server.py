@@ -59,7 +59,8 @@ def run_server(host: str | None = None, port: int | None = None) -> None:
         if settings.uses_broker
         else "a local process pool (embedded mode; no broker)"
     )
-    print(f"trajopt API: http://{shown}:{port}  (docs: http://{shown}:{port}/docs)", flush=True)
+    base = f"http://{shown}:{port}"
+    print(f"trajopt API: {base}  (docs: {base}/docs, your jobs: {base}/ui/)", flush=True)
     print(f"jobs run on {mode}; database: {_safe_url(settings.effective_database_url)}", flush=True)
     print(auth_banner(settings), flush=True)
     config = uvicorn.Config(

@@ -1,0 +1,147 @@
+"""The web pages (``/ui/``) in a real headless Chromium driven by Playwright, against a real
+``trajopt serve`` (embedded defaults), with no network but the loopback: a finished job's page
+shows its plots, verification and links; a running job's page updates as iterations arrive and
+shows the end; the list shows the caller's jobs; no page logs a console error or asks any other
+host for anything."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from tests.e2e.browser import OFFLINE_FLAGS, chromium
+from tests.integration.harness import ApiServer, ServiceClient, long_job
+
+pytestmark = pytest.mark.slow
+
+ZONE_SCENARIO = "rlv-max-terminal-velocity-active-nfz"
+AT_LEAST = "n => Number(document.querySelector('#iteration').textContent) >= n"
+"""A function (a string expression would be evaluated, which the pages' policy forbids)."""
+
+
+class PageWatch:
+    """A Playwright page with every console error, page error and foreign request recorded."""
+
+    def __init__(self, page: Any, base_url: str) -> None:
+        self.page = page
+        self.errors: list[str] = []
+        self.foreign: list[str] = []
+        page.on(
+            "console",
+            lambda msg: self.errors.append(f"console: {msg.text}") if msg.type == "error" else None,
+        )
+        page.on("pageerror", lambda exc: self.errors.append(f"page error: {exc}"))
+        page.on(
+            "request",
+            lambda req: (
+                None
+                if req.url.startswith((f"{base_url}/", "blob:", "data:"))
+                else self.foreign.append(req.url)
+            ),
+        )
+
+    def clean(self) -> None:
+        assert self.errors == [], self.errors
+        assert self.foreign == [], self.foreign
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    sync_api = pytest.importorskip("playwright.sync_api")
+    executable = chromium()
+    flags = [flag for flag in OFFLINE_FLAGS if flag != "--headless"]
+    with sync_api.sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=executable, args=flags)
+        yield launched
+        launched.close()
+
+
+@pytest.fixture
+def watch(browser: Any, embedded_server: ApiServer) -> Iterator[PageWatch]:
+    context = browser.new_context()
+    yield PageWatch(context.new_page(), embedded_server.base_url)
+    context.close()
+
+
+def test_a_finished_job_shows_plots_verification_and_links(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    job = embedded_client.submit({"scenario": ZONE_SCENARIO})
+    assert embedded_client.wait_finished(job["id"])["status"] == "succeeded"
+    page = watch.page
+    page.goto(f"{embedded_server.base_url}/ui/jobs/{job['id']}")
+    page.wait_for_selector("#figures:not([hidden]) figure[data-plot='convergence'] img")
+    loaded = "() => [...document.querySelectorAll('#plots img')].every(i => i.naturalWidth)"
+    page.wait_for_function(loaded)
+    names = page.eval_on_selector_all("#plots figure", "fs => fs.map(f => f.dataset.plot)")
+    expected = embedded_client.http.get(f"/v1/jobs/{job['id']}/plots").json()
+    assert names == expected
+    widths = page.eval_on_selector_all("#plots img", "is => is.map(i => i.naturalWidth)")
+    assert widths == [800] * len(expected)
+    assert page.inner_text("#status") == "succeeded"
+    assert "feasible" in page.inner_text("#verdict")
+    checks = page.inner_text("#verification")
+    assert "peak heat_rate_W_m2" in checks and "no-fly zone on-path zone" in checks
+    assert "fail" not in page.eval_on_selector_all(
+        "#verification tbody td:last-child", "cells => cells.map(c => c.textContent).join(' ')"
+    )
+    assert "max_terminal_velocity" in page.inner_text("#objective")
+    assert page.inner_text("#links").split(" · ") == [
+        "result JSON",
+        "history JSON",
+        "trajectory CSV",
+    ]
+    rows = page.eval_on_selector_all("#progress tbody tr", "rs => rs.length")
+    assert rows == len(
+        embedded_client.http.get(f"/v1/jobs/{job['id']}/history").json()["iterations"]
+    )
+    with page.expect_download() as download:
+        page.click("#links a:text('trajectory CSV')")
+    assert download.value.suggested_filename == f"{job['id']}-trajectory.csv"
+    watch.clean()
+
+
+def test_a_running_job_updates_live_and_shows_its_end(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    job = embedded_client.submit(long_job(ZONE_SCENARIO))
+    page = watch.page
+    try:
+        page.goto(f"{embedded_server.base_url}/ui/jobs/{job['id']}")
+        page.wait_for_function(AT_LEAST, arg=2, timeout=120_000)
+        first = int(page.inner_text("#iteration"))
+        first_rows = page.eval_on_selector_all("#progress tbody tr", "rs => rs.length")
+        page.wait_for_function(AT_LEAST, arg=first + 3, timeout=60_000)
+        assert page.eval_on_selector_all("#progress tbody tr", "rs => rs.length") > first_rows
+        assert page.inner_text("#status") == "running"
+    finally:
+        embedded_client.http.delete(f"/v1/jobs/{job['id']}")
+    page.wait_for_function(
+        "() => document.querySelector('#status').textContent === 'cancelled'", timeout=60_000
+    )
+    page.wait_for_function(
+        "() => document.querySelector('#message').textContent.startsWith('finished')"
+    )
+    assert "cancelled" in page.inner_text("#failure")
+    watch.clean()
+
+
+def test_the_list_links_each_of_the_callers_jobs(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    job = embedded_client.submit({"scenario": ZONE_SCENARIO, "method": {"max_iterations": 2}})
+    embedded_client.wait_finished(job["id"])
+    page = watch.page
+    page.goto(f"{embedded_server.base_url}/ui")
+    page.wait_for_selector(f"#jobs a[href='jobs/{job['id']}']")
+    total = embedded_client.http.get("/v1/jobs").json()["total"]
+    assert page.eval_on_selector_all("#jobs tbody tr", "rs => rs.length") == min(total, 50)
+    page.click(f"#jobs a[href='jobs/{job['id']}']")
+    page.wait_for_selector("#figures:not([hidden])")
+    assert page.inner_text("#status") == "failed"
+    finished = embedded_client.http.get(f"/v1/jobs/{job['id']}").json()
+    error = finished["error"]
+    assert page.inner_text("#failure").startswith(error["code"])
+    watch.clean()
