@@ -95,6 +95,11 @@ def _build_parser() -> argparse.ArgumentParser:
         "--csv", help="also write the trajectory as CSV (one row per node, units in the header)"
     )
 
+    submit = sub.add_parser("submit", help="submit a problem to a running service (and wait)")
+    from app.submit_cli import add_arguments as add_submit_arguments
+
+    add_submit_arguments(submit)
+
     plot = sub.add_parser("plot", help="render the plots of a result document (PNG or SVG)")
     plot.add_argument("result", help="a result document (trajopt solve -o, or GET /result)")
     plot.add_argument("-o", "--output", required=True, help="directory for the plot files")
@@ -194,6 +199,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             return trajectory_csv(result)
 
         return solver_cli.run(args, csv_table)
+    if args.command == "submit":
+        from app import submit_cli
+
+        server = args.server or os.environ.get("TRAJOPT_SERVER") or submit_cli.DEFAULT_SERVER
+        return submit_cli.run(args, server, args.api_key or os.environ.get("TRAJOPT_API_KEY"))
     if args.command == "plot":
         from app.report.files import plot_command
 

@@ -1,0 +1,337 @@
+"""A Python client of the trajopt service: submit, follow, wait for, fetch, cancel and list jobs.
+
+    from app.client import TrajoptClient
+
+    with TrajoptClient("http://127.0.0.1:8000", api_key=None) as client:
+        job = client.submit_scenario("rlv-min-heat-load", method={"nodes": 61})
+        for record in client.iterations(job["id"]):  # live, one per SCP iteration
+            print(record["iteration"], record["cost"])
+        result = client.result(job["id"])
+
+Every 4xx/5xx answer raises an :class:`ApiError` subclass carrying the service's error code,
+message, field and (422) the list of field issues. Requests the service refuses for a while
+(503 queue or database unavailable, 429 rate limit or active-job cap) are retried after the
+``Retry-After`` it sends, up to ``max_retries`` times and ``max_retry_wait_s`` in all; a
+submission carries an ``Idempotency-Key`` (made here unless given), so a retried submission
+never makes a second job. It needs only ``httpx``, not the service's own code.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import uuid
+from collections.abc import Iterator, Mapping
+from types import TracebackType
+from typing import Any, Self
+
+import httpx
+
+TERMINAL = frozenset({"succeeded", "failed", "cancelled", "timed_out"})
+"""Job statuses that do not change any more."""
+
+RETRIED_STATUSES = frozenset({429, 503})
+"""Answers that mean "not now": retried after their Retry-After."""
+
+
+class ApiError(Exception):
+    """The service refused a request: HTTP ``status``, its error ``code``, ``message``,
+    ``field`` (the first bad field, if any) and ``issues`` (every bad field, on 422)."""
+
+    def __init__(
+        self,
+        status: int,
+        code: str,
+        message: str,
+        field: str | None = None,
+        issues: list[dict[str, Any]] | None = None,
+        retry_after_s: float | None = None,
+    ) -> None:
+        super().__init__(f"{status} {code}: {message}")
+        self.status = status
+        self.code = code
+        self.message = message
+        self.field = field
+        self.issues = issues or []
+        self.retry_after_s = retry_after_s
+
+    @property
+    def fields(self) -> list[str]:
+        """The fields named by the issues (or the one ``field``)."""
+        named = [str(issue.get("field")) for issue in self.issues if issue.get("field")]
+        return named or ([self.field] if self.field else [])
+
+
+class InvalidRequestError(ApiError):
+    """422: the problem (or the request) is invalid; ``issues`` lists every bad field."""
+
+
+class AuthenticationError(ApiError):
+    """401: no API key, or a key the service does not accept."""
+
+
+class NotFoundError(ApiError):
+    """404: no such job of yours (or scenario, or plot)."""
+
+
+class ConflictError(ApiError):
+    """409: not finished yet, finished without a result, or already finished."""
+
+
+class RateLimitedError(ApiError):
+    """429 after the retries: rate limit or active-job cap; ``retry_after_s`` says when."""
+
+
+class UnavailableError(ApiError):
+    """503 after the retries: the queue or the database is unreachable."""
+
+
+class JobTimeoutError(TimeoutError):
+    """:meth:`TrajoptClient.wait` ran out of time; ``job`` is the job as last seen."""
+
+    def __init__(self, job: dict[str, Any], timeout_s: float) -> None:
+        super().__init__(f"job {job.get('id')} still {job.get('status')} after {timeout_s} s")
+        self.job = job
+
+
+_ERRORS: dict[int, type[ApiError]] = {
+    401: AuthenticationError,
+    404: NotFoundError,
+    409: ConflictError,
+    422: InvalidRequestError,
+    429: RateLimitedError,
+    503: UnavailableError,
+}
+
+
+def _retry_after(response: httpx.Response) -> float | None:
+    """The Retry-After of an answer in seconds (the service sends whole seconds), or None."""
+    value = response.headers.get("retry-after")
+    try:
+        return max(float(value), 0.0) if value is not None else None
+    except ValueError:
+        return None
+
+
+def error_from(response: httpx.Response) -> ApiError:
+    """The typed error of a refused request, from the service's common error body."""
+    try:
+        body = response.json()
+        error = body.get("error") if isinstance(body, dict) else None
+    except ValueError:
+        error = None
+    if not isinstance(error, dict):
+        error = {"code": f"http_{response.status_code}", "message": response.text[:200]}
+    kind = _ERRORS.get(response.status_code, ApiError)
+    return kind(
+        response.status_code,
+        str(error.get("code")),
+        str(error.get("message")),
+        error.get("field"),
+        error.get("issues"),
+        _retry_after(response),
+    )
+
+
+def parse_events(lines: Iterator[str]) -> Iterator[tuple[str, Any]]:
+    """(event, data) of each server-sent event in ``lines`` (text lines without their ends);
+    comments (pings) are skipped, data is decoded as JSON."""
+    event, data = "message", list[str]()
+    for line in lines:
+        if line == "":
+            if data:
+                yield event, json.loads("\n".join(data))
+            event, data = "message", []
+            continue
+        if line.startswith(":"):
+            continue
+        field, _, value = line.partition(":")
+        value = value[1:] if value.startswith(" ") else value
+        if field == "event":
+            event = value
+        elif field == "data":
+            data.append(value)
+    if data:
+        yield event, json.loads("\n".join(data))
+
+
+class TrajoptClient:
+    """A client of one trajopt service at ``base_url`` (``api_key`` for its api-keys mode)."""
+
+    def __init__(
+        self,
+        base_url: str,
+        api_key: str | None = None,
+        *,
+        timeout_s: float = 30.0,
+        max_retries: int = 5,
+        max_retry_wait_s: float = 120.0,
+        transport: httpx.BaseTransport | None = None,
+        sleep: Any = time.sleep,
+    ) -> None:
+        """``max_retries`` and ``max_retry_wait_s`` bound the retries of 429/503 answers;
+        ``transport`` and ``sleep`` exist for tests of the retry logic."""
+        headers = {"X-API-Key": api_key} if api_key else {}
+        self.http = httpx.Client(
+            base_url=base_url.rstrip("/"), headers=headers, timeout=timeout_s, transport=transport
+        )
+        self.max_retries = max_retries
+        self.max_retry_wait_s = max_retry_wait_s
+        self._sleep = sleep
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the connections."""
+        self.http.close()
+
+    # --- requests ------------------------------------------------------------------------
+
+    def request(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
+        """One request, retried after Retry-After while the service answers 429 or 503 (within
+        the retry budget); a refusal raises its typed :class:`ApiError`."""
+        waited = 0.0
+        for attempt in range(self.max_retries + 1):
+            response = self.http.request(method, path, **kwargs)
+            if response.status_code < 400:
+                return response
+            error = error_from(response)
+            wait = error.retry_after_s if error.retry_after_s is not None else 2.0**attempt
+            retry = (
+                response.status_code in RETRIED_STATUSES
+                and attempt < self.max_retries
+                and waited + wait <= self.max_retry_wait_s
+            )
+            if not retry:
+                raise error
+            self._sleep(wait)
+            waited += wait
+        raise AssertionError("unreachable")
+
+    def _json(self, path: str, **params: Any) -> Any:
+        return self.request("GET", path, params=params or None).json()
+
+    # --- jobs ----------------------------------------------------------------------------
+
+    def submit(self, body: Mapping[str, Any], idempotency_key: str | None = None) -> dict[str, Any]:
+        """Submit a problem document, or ``{"scenario", "overrides", "method"}``; the job
+        (queued). The same ``idempotency_key`` and body return the same job."""
+        key = idempotency_key or str(uuid.uuid4())
+        response = self.request(
+            "POST", "/v1/jobs", json=dict(body), headers={"Idempotency-Key": key}
+        )
+        job: dict[str, Any] = response.json()
+        return job
+
+    def submit_scenario(
+        self,
+        name: str,
+        *,
+        overrides: Mapping[str, Any] | None = None,
+        method: Mapping[str, Any] | None = None,
+        idempotency_key: str | None = None,
+    ) -> dict[str, Any]:
+        """Submit built-in scenario ``name`` with a JSON Merge Patch of its problem and method
+        options merged into its method."""
+        body: dict[str, Any] = {"scenario": name}
+        if overrides:
+            body["overrides"] = dict(overrides)
+        if method:
+            body["method"] = dict(method)
+        return self.submit(body, idempotency_key)
+
+    def job(self, job_id: str) -> dict[str, Any]:
+        """The job: status, attempts, live progress."""
+        job: dict[str, Any] = self._json(f"/v1/jobs/{job_id}")
+        return job
+
+    def wait(self, job_id: str, timeout_s: float = 600.0, poll_s: float = 0.5) -> dict[str, Any]:
+        """The job once finished (any terminal status); :class:`JobTimeoutError` after
+        ``timeout_s``. Follows the event stream, polling only if the stream breaks off."""
+        deadline = time.monotonic() + timeout_s
+        job = self.job(job_id)
+        while job["status"] not in TERMINAL:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise JobTimeoutError(job, timeout_s)
+            try:
+                for event, data in self.events(job_id, timeout_s=left):
+                    if event == "end":
+                        return dict(data)
+            except httpx.TimeoutException:
+                pass
+            job = self.job(job_id)
+            if job["status"] not in TERMINAL:
+                self._sleep(min(poll_s, max(deadline - time.monotonic(), 0.0)))
+        return job
+
+    def events(self, job_id: str, timeout_s: float | None = None) -> Iterator[tuple[str, Any]]:
+        """The job's server-sent events as (event, data): ``iteration`` records, ``phase``
+        changes, then ``end`` (the finished job); replayed from the start for a finished job."""
+        timeout = httpx.Timeout(self.http.timeout.connect, read=timeout_s)
+        with self.http.stream("GET", f"/v1/jobs/{job_id}/events", timeout=timeout) as response:
+            if response.status_code >= 400:
+                response.read()
+                raise error_from(response)
+            yield from parse_events(response.iter_lines())
+
+    def iterations(self, job_id: str, timeout_s: float | None = None) -> Iterator[dict[str, Any]]:
+        """Each iteration record of the job as it arrives, until the job ends."""
+        for event, data in self.events(job_id, timeout_s):
+            if event == "iteration":
+                yield dict(data)
+            elif event == "end":
+                return
+
+    def result(self, job_id: str) -> dict[str, Any]:
+        """The result document of a finished job (:class:`ConflictError` before)."""
+        result: dict[str, Any] = self._json(f"/v1/jobs/{job_id}/result")
+        return result
+
+    def history(self, job_id: str) -> list[dict[str, Any]]:
+        """The iteration records so far."""
+        return list(self._json(f"/v1/jobs/{job_id}/history")["iterations"])
+
+    def trajectory_csv(self, job_id: str) -> str:
+        """The result's trajectory as CSV text."""
+        return self.request("GET", f"/v1/jobs/{job_id}/trajectory.csv").text
+
+    def plots(self, job_id: str) -> list[str]:
+        """The names of the result's plots."""
+        return list(self._json(f"/v1/jobs/{job_id}/plots"))
+
+    def plot(self, job_id: str, name: str, fmt: str = "png") -> bytes:
+        """Plot ``name`` of the result as PNG or SVG bytes."""
+        return self.request("GET", f"/v1/jobs/{job_id}/plots/{name}.{fmt}").content
+
+    def cancel(self, job_id: str) -> dict[str, Any]:
+        """Cancel the job (a queued one at once, a running one at its next iteration)."""
+        job: dict[str, Any] = self.request("DELETE", f"/v1/jobs/{job_id}").json()
+        return job
+
+    def jobs(self, status: str | None = None, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """The caller's jobs, newest first (optionally of one status), page after page."""
+        offset: int | None = 0
+        while offset is not None:
+            params: dict[str, Any] = {"limit": page_size, "offset": offset}
+            if status:
+                params["status"] = status
+            page = self._json("/v1/jobs", **params)
+            yield from page["items"]
+            offset = page.get("next_offset")
+
+    def validate(self, problem: Mapping[str, Any]) -> dict[str, Any]:
+        """The problem normalized by the service (defaults filled in), or InvalidRequestError."""
+        answer: dict[str, Any] = self.request(
+            "POST", "/v1/problems/validate", json=dict(problem)
+        ).json()
+        return answer

@@ -1,0 +1,123 @@
+"""``app.client.TrajoptClient`` and ``trajopt submit`` against real ``trajopt serve`` processes
+(embedded defaults): every call of the client on a live job, its typed errors, its retries of a
+rate-limited service after the Retry-After the service sends, and the command line on top."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from app.client import ConflictError, InvalidRequestError, NotFoundError, TrajoptClient
+from tests.integration.harness import ApiServer, embedded_env, long_job, service_free_env
+
+pytestmark = pytest.mark.slow
+
+SCENARIO = "rlv-max-terminal-velocity-active-nfz"
+
+
+@pytest.fixture
+def client(embedded_server: ApiServer) -> Iterator[TrajoptClient]:
+    with TrajoptClient(embedded_server.base_url) as made:
+        yield made
+
+
+def test_submit_follow_wait_and_fetch(client: TrajoptClient) -> None:
+    job = client.submit_scenario(
+        SCENARIO,
+        overrides={"path_constraints": {"load_factor": {"max_g": 2.4}}},
+        method={"nodes": 30},
+    )
+    assert job["status"] == "queued"
+    records = list(client.iterations(job["id"], timeout_s=120))
+    assert [r["iteration"] for r in records] == list(range(1, len(records) + 1))
+    done = client.wait(job["id"], timeout_s=60)
+    assert done["status"] == "succeeded"
+    result = client.result(job["id"])
+    assert result["provenance"]["method_options"]["nodes"] == 30
+    assert result["verification"]["path_maxima"]["load_factor_g"]["limit"] == 2.4
+    assert len(client.history(job["id"])) == len(result["history"])
+    rows = list(csv.reader(io.StringIO(client.trajectory_csv(job["id"]))))
+    assert len(rows) == 1 + 30
+    assert "ground-track" in client.plots(job["id"])
+    assert client.plot(job["id"], "ground-track", "svg").lstrip().startswith(b"<?xml")
+    assert job["id"] in [j["id"] for j in client.jobs(status="succeeded", page_size=2)]
+
+
+def test_typed_errors_and_cancel(client: TrajoptClient) -> None:
+    with pytest.raises(InvalidRequestError) as invalid:
+        client.submit_scenario(
+            SCENARIO, overrides={"vehicle": {"mass_kg": -1}}, method={"nodes": 1}
+        )
+    assert set(invalid.value.fields) == {"vehicle.mass_kg", "method.nodes"}
+    with pytest.raises(NotFoundError):
+        client.job("4b0c3e1e-0000-4000-8000-000000000000")
+    running = client.submit(long_job(SCENARIO))
+    with pytest.raises(ConflictError) as early:
+        client.result(running["id"])
+    assert early.value.code == "job_not_finished"
+    client.cancel(running["id"])
+    assert client.wait(running["id"], timeout_s=60)["status"] == "cancelled"
+    same = client.submit({"scenario": SCENARIO}, idempotency_key="once")
+    assert client.submit({"scenario": SCENARIO}, idempotency_key="once")["id"] == same["id"]
+
+
+@pytest.fixture(scope="module")
+def limited(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ApiServer]:
+    """A server that takes one submission per client every 2 s."""
+    data = tmp_path_factory.mktemp("limited")
+    env = embedded_env(data, TRAJOPT_RATE_WINDOW_S="2", TRAJOPT_RATE_SUBMIT_PER_WINDOW="1")
+    yield from ApiServer(env, data / "serve.log").serving()
+
+
+def test_a_rate_limited_submission_is_retried_after_retry_after(limited: ApiServer) -> None:
+    body = {"scenario": SCENARIO, "method": {"max_iterations": 1}}
+    with TrajoptClient(limited.base_url) as client:
+        first = client.submit(body)
+        refused = client.http.post("/v1/jobs", json=body)  # what the client meets next
+        assert refused.status_code == 429 and float(refused.headers["retry-after"]) > 0
+        started = time.monotonic()
+        second = client.submit(body)  # waits out the window, then is taken
+        assert time.monotonic() - started >= 0.5
+        assert second["id"] != first["id"]
+
+
+def test_trajopt_submit_waits_and_writes_the_result(
+    embedded_server: ApiServer, tmp_path: Path
+) -> None:
+    command = [sys.executable, "-m", "app.cli", "submit", SCENARIO, "--nodes", "30", "--wait"]
+    command += ["--server", embedded_server.base_url, "-o", "result.json", "--csv", "t.csv"]
+    done = subprocess.run(
+        command, cwd=tmp_path, env=service_free_env(), capture_output=True, text=True, timeout=180
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1].endswith("succeeded")
+    assert "iteration 1:" in done.stderr
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["status"] == "succeeded"
+    assert len((tmp_path / "t.csv").read_text().splitlines()) == 1 + 30
+    bad = subprocess.run(
+        [*command[:5], "--server", embedded_server.base_url, "--nodes", "1"],
+        cwd=tmp_path,
+        env=service_free_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert bad.returncode == 2 and "method.nodes" in bad.stderr and "Traceback" not in bad.stderr
+    gone = subprocess.run(
+        [*command[:5], "--server", "http://127.0.0.1:9"],
+        cwd=tmp_path,
+        env=service_free_env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert gone.returncode == 2 and "cannot reach" in gone.stderr
