@@ -335,3 +335,53 @@ class TrajoptClient:
             "POST", "/v1/problems/validate", json=dict(problem)
         ).json()
         return answer
+
+    # --- batches -------------------------------------------------------------------------
+
+    def submit_batch(
+        self, body: Mapping[str, Any], idempotency_key: str | None = None
+    ) -> dict[str, Any]:
+        """Submit a batch: ``{"base", "grid" | "monte_carlo" | "methods", "name"}``."""
+        key = idempotency_key or str(uuid.uuid4())
+        response = self.request(
+            "POST", "/v1/batches", json=dict(body), headers={"Idempotency-Key": key}
+        )
+        batch: dict[str, Any] = response.json()
+        return batch
+
+    def batch(self, batch_id: str) -> dict[str, Any]:
+        """The batch: status and its children counted by status."""
+        batch: dict[str, Any] = self._json(f"/v1/batches/{batch_id}")
+        return batch
+
+    def wait_batch(
+        self, batch_id: str, timeout_s: float = 3600.0, poll_s: float = 1.0
+    ) -> dict[str, Any]:
+        """The batch once no child is queued or running; :class:`JobTimeoutError` after
+        ``timeout_s`` (its ``job`` is the batch as last seen)."""
+        deadline = time.monotonic() + timeout_s
+        batch = self.batch(batch_id)
+        while batch["status"] == "running":
+            if time.monotonic() >= deadline:
+                raise JobTimeoutError(batch, timeout_s)
+            self._sleep(poll_s)
+            batch = self.batch(batch_id)
+        return batch
+
+    def batch_summary(self, batch_id: str) -> dict[str, Any]:
+        """One row per child: parameters, status, objective, terminal and path figures."""
+        summary: dict[str, Any] = self._json(f"/v1/batches/{batch_id}/summary")
+        return summary
+
+    def batch_summary_csv(self, batch_id: str) -> str:
+        """The summary as CSV text."""
+        return self.request("GET", f"/v1/batches/{batch_id}/summary.csv").text
+
+    def batch_plot(self, batch_id: str, fmt: str = "png") -> bytes:
+        """The batch's plot as PNG or SVG bytes."""
+        return self.request("GET", f"/v1/batches/{batch_id}/plot.{fmt}").content
+
+    def cancel_batch(self, batch_id: str) -> dict[str, Any]:
+        """Cancel the batch's children not finished yet."""
+        batch: dict[str, Any] = self.request("DELETE", f"/v1/batches/{batch_id}").json()
+        return batch

@@ -73,9 +73,10 @@ async def get_principal(
         principal = await run_in_threadpool(
             authenticate, service.database, service.settings, api_key
         )
-    job_id = request.path_params.get("job_id")
-    if isinstance(job_id, str) and _JOB_ID.fullmatch(job_id) is None:
-        raise not_found("job", job_id if len(job_id) <= 64 else f"{job_id[:64]}...")
+    for kind in ("job", "batch"):  # both ids are UUIDs
+        ident = request.path_params.get(f"{kind}_id")
+        if isinstance(ident, str) and _JOB_ID.fullmatch(ident) is None:
+            raise not_found(kind, ident if len(ident) <= 64 else f"{ident[:64]}...")
     return principal
 
 

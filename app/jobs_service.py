@@ -81,7 +81,8 @@ def _progress(job: Job) -> Progress | None:
         return None
 
 
-def _check_key(key: str | None) -> str | None:
+def check_idempotency_key(key: str | None) -> str | None:
+    """``key`` if it is a usable Idempotency-Key (None: none given); 422 otherwise."""
     if key is None:
         return None
     if not key or len(key) > MAX_IDEMPOTENCY_KEY_LENGTH or not key.isprintable():
@@ -94,14 +95,19 @@ def _check_key(key: str | None) -> str | None:
     return key
 
 
-def _replay(existing: Job, fingerprint: str, key: str) -> Job:
-    if existing.request_hash != fingerprint:
+def check_replay(stored_hash: str | None, fingerprint: str | None, key: str) -> None:
+    """422 when Idempotency-Key ``key`` was first used with another body."""
+    if stored_hash != fingerprint:
         raise ApiError(
             422,
             "idempotency_key_reused",
             f"Idempotency-Key {key!r} was already used with a different body",
             field="Idempotency-Key",
         )
+
+
+def _replay(existing: Job, fingerprint: str, key: str) -> Job:
+    check_replay(existing.request_hash, fingerprint, key)
     return existing
 
 
@@ -137,7 +143,7 @@ def submit_job(
     quota = owner.quota if isinstance(owner, Submitter) else None
     owner = str(owner)
     try:
-        key = _check_key(idempotency_key)
+        key = check_idempotency_key(idempotency_key)
         fingerprint = request_fingerprint(body) if key else None
         if key and fingerprint:
             with database.reader() as session:
@@ -240,14 +246,14 @@ def _submit(
         log.info("job %s was picked up despite the error; accepted", job.id)
     else:
         if defer is not None:
-            defer(functools.partial(_mark_sent, database, job.id))
+            defer(functools.partial(mark_sent, database, job.id))
         else:
-            _mark_sent(database, job.id)
+            mark_sent(database, job.id)
     log.info("job %s accepted for client %s (%s)", job.id, owner, job.method)
     return job_view(job, settings), False
 
 
-def _mark_sent(database: Database, job_id: str) -> None:
+def mark_sent(database: Database, job_id: str) -> None:
     """Close the job's outbox entry; if this fails, the relay sends the job once more (a
     duplicate delivery does nothing)."""
     try:

@@ -22,7 +22,7 @@ from app.metrics import build_registry
 from app.middleware import BodySizeLimit
 from app.openapi import install_openapi
 from app.ratelimit import MemoryRateLimiter, RateLimiter, RedisRateLimiter
-from app.routes import catalog, events, health, jobs, problems, report, ui
+from app.routes import batches, catalog, events, health, jobs, problems, report, ui
 from app.settings import Settings, get_settings
 from app.state import ServiceState
 from app.storage.migrate import upgrade_database
@@ -156,7 +156,8 @@ def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None =
     )
     install_docs(app)
     install_error_handlers(app)
-    for module, guard in ((jobs, get_principal), (report, get_principal), (events, get_principal)):
+    guarded = (jobs, report, batches, events)
+    for module, guard in ((m, get_principal) for m in guarded):
         app.include_router(module.router, dependencies=[Depends(guard)], responses=_V1_RESPONSES)
     for module in (catalog, problems):  # no owner of their own: count them as reads here
         app.include_router(

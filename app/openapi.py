@@ -16,6 +16,7 @@ from pydantic import BaseModel
 
 from app.routes.examples import ERROR_EXAMPLES
 from app.schemas import ProblemDocument
+from app.schemas.batch import BatchRequest
 from app.schemas.result import ResultDocument
 from app.views import ScenarioJobRequest
 
@@ -67,6 +68,18 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
     ("delete", "/v1/jobs/{job_id}"): {409: ["job_finished"]},
     ("get", "/v1/jobs/{job_id}/events"): {429: ["rate_limited", "too_many_streams"]},
     ("get", "/readyz"): {503: ["not_ready"]},
+    ("post", "/v1/batches"): {
+        422: [
+            "invalid_batch",
+            "over_server_cap",
+            "invalid_idempotency_key",
+            "idempotency_key_reused",
+        ],
+        429: ["submit_rate_limited", "too_many_active_jobs"],
+    },
+    ("get", "/v1/batches/{batch_id}/plot.{fmt}"): {
+        404: ["batch_not_found", "plot_format_not_found"]
+    },
 }
 
 BODY_ERRORS: dict[str, dict[str, Any]] = {
@@ -105,7 +118,7 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
         routes=app.routes,
     )
     components = schema.setdefault("components", {}).setdefault("schemas", {})
-    for model in (ProblemDocument, ScenarioJobRequest, ResultDocument):
+    for model in (ProblemDocument, ScenarioJobRequest, ResultDocument, BatchRequest):
         _add_model(components, model)
     for path, operations in schema.get("paths", {}).items():
         for method, operation in operations.items():
@@ -130,6 +143,8 @@ def _error_codes(method: str, path: str, status: int) -> list[str]:
     if status == 404:
         if "{job_id}" in path:
             return ["job_not_found"]
+        if "{batch_id}" in path:
+            return ["batch_not_found"]
         if "{name}" in path:
             return ["scenario_not_found"]
     return ERRORS_BY_STATUS.get(status, [])

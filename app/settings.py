@@ -155,6 +155,9 @@ class Settings(BaseSettings):
     max_active_jobs: int = Field(
         default=100, ge=1, description="Queued + running jobs one client may have."
     )
+    max_batch_children: int = Field(
+        default=100, ge=1, description="Children one batch may have (each an ordinary job)."
+    )
     max_nodes: int = Field(default=1000, ge=3)
     max_iterations: int = Field(default=500, ge=1)
     max_no_fly_zones: int = Field(default=20, ge=0)

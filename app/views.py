@@ -224,3 +224,49 @@ class Health(BaseModel):
 
     status: str
     checks: dict[str, str] = Field(default_factory=dict)
+
+
+class BatchLinks(BaseModel):
+    """Where to find a batch's parts."""
+
+    self: str
+    summary: str
+    summary_csv: str
+    plot: str = Field(..., description="The batch's plot; .png or .svg.")
+
+
+class BatchView(BaseModel):
+    """A batch as the API shows it: its children counted by status."""
+
+    id: str
+    name: str | None = None
+    kind: Literal["grid", "monte_carlo", "methods"]
+    size: int = Field(..., description="Number of children (each an ordinary job).")
+    status: Literal["running", "finished", "cancelled"] = Field(
+        ...,
+        description="running while a child is queued or running; then finished, or cancelled "
+        "when the batch was cancelled.",
+    )
+    counts: dict[str, int] = Field(..., description="Children per job status.")
+    cancel_requested: bool
+    created_at: datetime
+    links: BatchLinks
+
+
+class BatchPage(BaseModel):
+    """One page of the caller's batches, newest first."""
+
+    items: list[BatchView]
+    total: int
+    limit: int
+    offset: int
+    next_offset: int | None = None
+
+
+class BatchSummary(BaseModel):
+    """One row per child, in order: its parameters, status, objective, key terminal and path
+    figures (from the verification), iterations and times; null where a child has none yet."""
+
+    batch: BatchView
+    parameters: list[str] = Field(..., description="The parameter paths, in column order.")
+    rows: list[dict[str, Any]]

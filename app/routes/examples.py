@@ -162,6 +162,24 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
             "on request before it started",
         },
     ),
+    "batch_not_found": _error(
+        404,
+        "no such batch of yours",
+        {"code": "batch_not_found", "message": f"no batch '{JOB_ID}'"},
+    ),
+    "invalid_batch": _error(
+        422,
+        "a child (or the request, or the base problem) is invalid",
+        _invalid(
+            "invalid_batch",
+            "batch",
+            (
+                "children[0].no_fly_zones[0].radius_deg",
+                'Input should be greater than 0 (child 0: {"/no_fly_zones/0/radius_deg": -1.0})',
+                "greater_than",
+            ),
+        ),
+    ),
     "no_trajectory": _error(
         409,
         "the result holds no trajectory",

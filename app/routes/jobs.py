@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, BackgroundTasks, Header, Query, Response
+from fastapi import APIRouter, BackgroundTasks, Query, Response
 
 from app import jobs_service
 from app.body import ProblemBody, problem_request_body
 from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep, SubmitterDep
+from app.routes.accepted import IdempotencyKey, accepted
 from app.routes.examples import HISTORY_EXAMPLES, PROBLEM_EXAMPLES, RESULT_EXAMPLES
 from app.views import ErrorResponse, HistoryView, JobPage, JobStatusName, JobView
 
@@ -46,13 +47,7 @@ def submit_job(
     dispatcher: DispatcherDep,
     settings: SettingsDep,
     owner: SubmitterDep,
-    idempotency_key: Annotated[
-        str | None,
-        Header(
-            alias="Idempotency-Key",
-            description="Same key and body return the same job; same key, other body: 422.",
-        ),
-    ] = None,
+    idempotency_key: IdempotencyKey = None,
 ) -> JobView:
     """Store a problem document (or a scenario with overrides) and queue it for solving."""
     view, replayed = jobs_service.submit_job(
@@ -64,9 +59,7 @@ def submit_job(
         idempotency_key=idempotency_key,
         defer=background.add_task,
     )
-    response.headers["Location"] = view.links.self
-    if replayed:
-        response.headers["Idempotent-Replayed"] = "true"
+    accepted(response, view.links.self, replayed)
     return view
 
 

@@ -84,13 +84,7 @@ def list_plots(job_id: str, database: DatabaseDep, owner: OwnerDep) -> list[str]
 def get_plot(job_id: str, name: str, fmt: str, database: DatabaseDep, owner: OwnerDep) -> Response:
     """Plot ``name`` (one of ``/plots``) as ``fmt`` (png or svg): optimized nodes over the
     propagated flight, with the limits and no-fly zones."""
-    if fmt not in PLOT_FORMATS:
-        raise ApiError(
-            404,
-            "plot_format_not_found",
-            f"no plot format {fmt!r}; formats: {', '.join(sorted(PLOT_FORMATS))}",
-            field="fmt",
-        )
+    media_type = plot_media_type(fmt)
     result = _result(database, owner, job_id)
     names = available_plots(result)
     if name not in names:
@@ -100,4 +94,16 @@ def get_plot(job_id: str, name: str, fmt: str, database: DatabaseDep, owner: Own
             f"job {job_id} has no plot {name!r}; its plots: {', '.join(names) or 'none'}",
             field="name",
         )
-    return Response(render_plot(result, name, fmt), media_type=PLOT_FORMATS[fmt])
+    return Response(render_plot(result, name, fmt), media_type=media_type)
+
+
+def plot_media_type(fmt: str) -> str:
+    """The media type of plot format ``fmt``; 404 ``plot_format_not_found`` for another."""
+    if fmt not in PLOT_FORMATS:
+        raise ApiError(
+            404,
+            "plot_format_not_found",
+            f"no plot format {fmt!r}; formats: {', '.join(sorted(PLOT_FORMATS))}",
+            field="fmt",
+        )
+    return PLOT_FORMATS[fmt]

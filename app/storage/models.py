@@ -1,5 +1,5 @@
-"""The ``jobs`` table (one row per submitted problem with status, progress, history and result)
-and the ``api_keys`` table (hashed client keys)."""
+"""The ``jobs`` table (one row per submitted problem with status, progress, history and result),
+the ``batches`` table (a study of many jobs) and the ``api_keys`` table (hashed client keys)."""
 
 from __future__ import annotations
 
@@ -92,6 +92,7 @@ class Job(Base):
         Index("ix_jobs_status", "status"),
         Index("ix_jobs_status_lease", "status", "lease_expires_at"),
         Index("ix_jobs_status_dispatch_due", "status", "dispatch_due_at"),
+        Index("ix_jobs_batch", "batch_id", "batch_index"),
     )
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True)
@@ -120,6 +121,35 @@ class Job(Base):
     """``host/pid`` of the process running the attempt (see :func:`process_identity`)."""
     dispatch_due_at: Mapped[datetime | None] = mapped_column(UtcDateTime, nullable=True)
     """Outbox: when this queued job is due to be sent to a worker (again); null once sent."""
+    batch_id: Mapped[str | None] = mapped_column(String(36), nullable=True)
+    """The batch this job is a child of (null for a job submitted alone)."""
+    batch_index: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    """Position of the child in its batch (0-based)."""
+    batch_parameters: Mapped[dict[str, Any] | None] = mapped_column(JsonType, nullable=True)
+    """What the batch set in this child: JSON pointer -> value."""
+
+
+class Batch(Base):
+    """Many jobs on one base problem (a grid, a Monte Carlo dispersion, a method comparison);
+    its status and summary are read from its children."""
+
+    __tablename__ = "batches"
+    __table_args__ = (
+        UniqueConstraint("owner", "idempotency_key", name="uq_batches_owner_idempotency_key"),
+        CheckConstraint("kind IN ('grid','monte_carlo','methods')", name="ck_batches_kind"),
+        Index("ix_batches_owner_created", "owner", "created_at"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True)
+    owner: Mapped[str] = mapped_column(String(128), nullable=False)
+    name: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    kind: Mapped[str] = mapped_column(String(16), nullable=False)
+    request: Mapped[dict[str, Any]] = mapped_column(JsonType, nullable=False)
+    size: Mapped[int] = mapped_column(Integer, nullable=False)
+    idempotency_key: Mapped[str | None] = mapped_column(String(255), nullable=True)
+    request_hash: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    cancel_requested: Mapped[bool] = mapped_column(nullable=False, default=False)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime, nullable=False, default=utcnow)
 
 
 class ApiKey(Base):

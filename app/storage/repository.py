@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import uuid
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from enum import StrEnum
@@ -37,7 +37,15 @@ from sqlalchemy import (
 from sqlalchemy.dialects.postgresql import JSONB
 from sqlalchemy.orm import Session
 
-from app.storage.models import ACTIVE_STATUSES, ApiKey, Job, JobStatus, process_identity, utcnow
+from app.storage.models import (
+    ACTIVE_STATUSES,
+    ApiKey,
+    Batch,
+    Job,
+    JobStatus,
+    process_identity,
+    utcnow,
+)
 
 _NO_SYNC = {"synchronize_session": False}
 
@@ -52,6 +60,9 @@ class NewJob:
     scenario: str | None = None
     idempotency_key: str | None = None
     request_hash: str | None = None
+    batch_id: str | None = None
+    batch_index: int | None = None
+    batch_parameters: dict[str, Any] | None = None
 
 
 DISPATCH_CLAIM_S = 10.0
@@ -81,6 +92,9 @@ def create_job(session: Session, new: NewJob) -> Job:
         updated_at=now,
         history=[],
         dispatch_due_at=now + timedelta(seconds=DISPATCH_CLAIM_S),
+        batch_id=new.batch_id,
+        batch_index=new.batch_index,
+        batch_parameters=new.batch_parameters,
     )
     session.add(job)
     session.flush()
@@ -776,28 +790,34 @@ def should_stop(session: Session, job_id: str, attempt: int) -> bool:
 
 def request_cancel(session: Session, job_id: str, owner: str) -> Job | None:
     """Cancel a queued job at once, or flag a running one to stop; returns the job after."""
+    _cancel_where(session, Job.id == job_id, owner, "cancelled on request before it started")
+    session.expire_all()
+    return get_job(session, job_id, owner)
+
+
+def _cancel_where(session: Session, which: Any, owner: str, message: str) -> None:
+    """Cancel the owner's queued jobs matching ``which`` at once (``message`` says why) and
+    flag its running ones to stop at their next iteration."""
     now = utcnow()
     session.execute(
         update(Job)
-        .where(Job.id == job_id, Job.owner == owner, Job.status == JobStatus.QUEUED.value)
+        .where(which, Job.owner == owner, Job.status == JobStatus.QUEUED.value)
         .values(
             status=JobStatus.CANCELLED.value,
             cancel_requested=True,
             finished_at=now,
             updated_at=now,
             error_code="cancelled",
-            error_message="cancelled on request before it started",
+            error_message=message,
         )
         .execution_options(**_NO_SYNC)
     )
     session.execute(
         update(Job)
-        .where(Job.id == job_id, Job.owner == owner, Job.status == JobStatus.RUNNING.value)
+        .where(which, Job.owner == owner, Job.status == JobStatus.RUNNING.value)
         .values(cancel_requested=True, updated_at=now)
         .execution_options(**_NO_SYNC)
     )
-    session.expire_all()
-    return get_job(session, job_id, owner)
 
 
 def active_job_ids(session: Session, statuses: Iterable[str] = ACTIVE_STATUSES) -> list[str]:
@@ -841,3 +861,165 @@ def solve_time_histogram(session: Session, bounds: Sequence[float]) -> Histogram
 
 def _rowcount(result: Any) -> int:
     return int(getattr(result, "rowcount", 0) or 0)
+
+
+# --- batches ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NewBatch:
+    """What the API stores when a batch is submitted (its children are :class:`NewJob`)."""
+
+    owner: str
+    kind: str
+    request: dict[str, Any]
+    size: int
+    name: str | None = None
+    idempotency_key: str | None = None
+    request_hash: str | None = None
+
+
+def create_batch(
+    session: Session, new: NewBatch, children: Sequence[NewJob]
+) -> tuple[Batch, list[Job]]:
+    """Insert the batch and its children (queued, in order, each its own outbox entry)."""
+    batch = Batch(
+        id=str(uuid.uuid4()),
+        owner=new.owner,
+        name=new.name,
+        kind=new.kind,
+        request=new.request,
+        size=new.size,
+        idempotency_key=new.idempotency_key,
+        request_hash=new.request_hash,
+        cancel_requested=False,
+        created_at=utcnow(),
+    )
+    session.add(batch)
+    session.flush()
+    jobs = [
+        create_job(
+            session,
+            NewJob(
+                owner=child.owner,
+                method=child.method,
+                problem=child.problem,
+                scenario=child.scenario,
+                batch_id=batch.id,
+                batch_index=index,
+                batch_parameters=child.batch_parameters,
+            ),
+        )
+        for index, child in enumerate(children)
+    ]
+    return batch, jobs
+
+
+def get_batch(session: Session, batch_id: str, owner: str) -> Batch | None:
+    """The batch ``batch_id`` of ``owner``."""
+    stmt = select(Batch).where(Batch.id == batch_id, Batch.owner == owner)
+    return session.execute(stmt).scalar_one_or_none()
+
+
+def find_batch_by_idempotency_key(session: Session, owner: str, key: str) -> Batch | None:
+    """The owner's batch submitted with Idempotency-Key ``key``."""
+    stmt = select(Batch).where(Batch.owner == owner, Batch.idempotency_key == key)
+    return session.execute(stmt).scalar_one_or_none()
+
+
+def list_batches(session: Session, owner: str, limit: int, offset: int) -> tuple[list[Batch], int]:
+    """A page of the owner's batches, newest first, and how many there are."""
+    total = session.execute(
+        select(func.count()).select_from(Batch).where(Batch.owner == owner)
+    ).scalar_one()
+    rows = session.execute(
+        select(Batch)
+        .where(Batch.owner == owner)
+        .order_by(Batch.created_at.desc(), Batch.id)
+        .limit(limit)
+        .offset(offset)
+    ).scalars()
+    return list(rows), int(total)
+
+
+def batch_counts(session: Session, batch_ids: Sequence[str]) -> dict[str, dict[str, int]]:
+    """For each batch, how many of its children are in each status."""
+    counts: dict[str, dict[str, int]] = {batch_id: {} for batch_id in batch_ids}
+    if not batch_ids:
+        return counts
+    rows = session.execute(
+        select(Job.batch_id, Job.status, func.count())
+        .where(Job.batch_id.in_(list(batch_ids)))
+        .group_by(Job.batch_id, Job.status)
+    )
+    for batch_id, status, count in rows:
+        counts[str(batch_id)][str(status)] = int(count)
+    return counts
+
+
+@dataclass(frozen=True)
+class BatchChild:
+    """One child of a batch as its summary reads it."""
+
+    id: str
+    index: int
+    parameters: dict[str, Any]
+    status: str
+    error_code: str | None
+    error_message: str | None
+    result: dict[str, Any] | None
+
+
+def batch_children(
+    session: Session, batch_id: str, owner: str, chunk: int = 20
+) -> Iterator[BatchChild]:
+    """The batch's children in order, with their result documents, read ``chunk`` at a time
+    (one query each, so the reader's autocommit session needs no server-side cursor)."""
+    start = 0
+    while True:
+        stmt = (
+            select(
+                Job.id,
+                Job.batch_index,
+                Job.batch_parameters,
+                Job.status,
+                Job.error_code,
+                Job.error_message,
+                Job.result,
+            )
+            .where(
+                Job.batch_id == batch_id,
+                Job.owner == owner,
+                Job.batch_index >= start,
+                Job.batch_index < start + chunk,
+            )
+            .order_by(Job.batch_index)
+        )
+        rows = session.execute(stmt).all()
+        if not rows:
+            return
+        for row in rows:
+            yield BatchChild(
+                id=row.id,
+                index=int(row.batch_index or 0),
+                parameters=dict(row.batch_parameters or {}),
+                status=row.status,
+                error_code=row.error_code,
+                error_message=row.error_message,
+                result=row.result,
+            )
+        start += chunk
+
+
+def cancel_batch(session: Session, batch_id: str, owner: str) -> Batch | None:
+    """Flag the batch cancelled, cancel its queued children at once and ask its running ones to
+    stop (as :func:`request_cancel` does for one job); the batch, or None if not the owner's."""
+    batch = get_batch(session, batch_id, owner)
+    if batch is None:
+        return None
+    batch.cancel_requested = True
+    _cancel_where(
+        session, Job.batch_id == batch_id, owner, "cancelled with its batch before it started"
+    )
+    session.flush()
+    return batch

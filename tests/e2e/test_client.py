@@ -69,6 +69,43 @@ def test_typed_errors_and_cancel(client: TrajoptClient) -> None:
     assert client.submit({"scenario": SCENARIO}, idempotency_key="once")["id"] == same["id"]
 
 
+def test_batches_of_methods_and_of_dispersions(client: TrajoptClient) -> None:
+    methods = client.submit_batch(
+        {
+            "base": {"scenario": "rlv-max-terminal-velocity", "method": {"nodes": 30}},
+            "methods": [
+                {"name": "foh-ptr", "nodes": 30},
+                {"name": "foh-ptr", "nodes": 30, "grid": "uniform"},
+            ],
+        }
+    )
+    assert client.wait_batch(methods["id"], timeout_s=180)["status"] == "finished"
+    rows = client.batch_summary(methods["id"])["rows"]
+    assert [r["parameters"]["/method"] for r in rows] == ["foh-ptr", "foh-ptr"]
+    assert all(r["status"] == "succeeded" for r in rows), rows
+    # one problem, two grids: the same answer within 0.3 % (the variant suite's band)
+    assert rows[1]["objective"] == pytest.approx(rows[0]["objective"], rel=3e-3)
+    assert client.batch_plot(methods["id"])[:4] == b"\x89PNG"
+    spread = {
+        "base": {"scenario": SCENARIO, "method": {"max_iterations": 1}},
+        "monte_carlo": {
+            "samples": 3,
+            "seed": 5,
+            "dispersions": [
+                {"path": "/initial_state/velocity_m_s", "distribution": "normal", "sigma": 10}
+            ],
+        },
+    }
+    first, again = client.submit_batch(spread), client.submit_batch(spread)
+    drawn = [
+        [r["parameters"] for r in client.batch_summary(b["id"])["rows"]] for b in (first, again)
+    ]
+    assert drawn[0] == drawn[1] and len({json.dumps(p) for p in drawn[0]}) == 3  # reproducible
+    for batch in (first, again):
+        client.cancel_batch(batch["id"])
+        assert client.wait_batch(batch["id"], timeout_s=120)["status"] in ("finished", "cancelled")
+
+
 @pytest.fixture(scope="module")
 def limited(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ApiServer]:
     """A server that takes one submission per client every 2 s."""

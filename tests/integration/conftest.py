@@ -10,6 +10,7 @@ import os
 import random
 import uuid
 from collections.abc import Iterator
+from pathlib import Path
 from urllib.parse import quote
 
 import psycopg
@@ -135,14 +136,21 @@ def worker(
 ) -> Iterator[ServiceProcess]:
     """One Celery worker process (one pool child) against this run's Redis queue."""
     log = tmp_path_factory.mktemp("logs") / "worker.log"
-    process = ServiceProcess(["-m", "app.cli", "worker", "--concurrency", "1"], stack_env, log)
+    try:
+        yield from celery_worker(stack_env, log)
+    finally:
+        forget_queue(stack_env["REDIS_URL"], stack_env["TRAJOPT_QUEUE_NAME"])
+
+
+def celery_worker(env: dict[str, str], log: Path) -> Iterator[ServiceProcess]:
+    """A Celery worker process (one pool child) on the queue of ``env``, until closed."""
+    process = ServiceProcess(["-m", "app.cli", "worker", "--concurrency", "1"], env, log)
     process.start()
     try:
         process.wait_for_output(" ready.", timeout=90)
         yield process
     finally:
         process.stop()
-        forget_queue(stack_env["REDIS_URL"], stack_env["TRAJOPT_QUEUE_NAME"])
 
 
 @pytest.fixture(scope="session")

@@ -269,6 +269,14 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
         "result_unavailable": lambda: default.get(f"/v1/jobs/{cancelled()}/result"),
         "job_finished": lambda: default.delete(f"/v1/jobs/{succeeded()}"),
         # a result with a history and no trajectory: its only plot is the convergence
+        "batch_not_found": lambda: default.get(f"/v1/batches/{JOB_ID}"),
+        "invalid_batch": lambda: default.post(
+            "/v1/batches",
+            json={
+                "base": {"scenario": "rlv-max-terminal-velocity-active-nfz"},
+                "grid": {"parameters": [{"path": "/no_fly_zones/0/radius_deg", "values": [-1.0]}]},
+            },
+        ),
         "no_trajectory": lambda: default.get(f"/v1/jobs/{succeeded()}/trajectory.csv"),
         "plot_not_found": lambda: default.get(f"/v1/jobs/{succeeded()}/plots/ground-track.png"),
         "plot_format_not_found": lambda: default.get(f"/v1/jobs/{succeeded()}/plots/states.jpg"),
