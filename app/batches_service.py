@@ -30,6 +30,7 @@ from app.jobs_service import (
     check_idempotency_key,
     check_replay,
     mark_sent,
+    resolve_initial_guess,
 )
 from app.ratelimit import Quota, Submitter
 from app.report.batch import render_summary_plot, summary_csv, summary_row
@@ -40,7 +41,7 @@ from app.storage import quota as quota_store
 from app.storage import repository
 from app.storage.models import ACTIVE_STATUSES, Batch
 from app.storage.session import Database
-from app.submission import invalid, request_fingerprint, resolve_submission
+from app.submission import Submission, invalid, request_fingerprint, resolve_submission
 from app.views import BatchLinks, BatchPage, BatchSummary, BatchView
 from worker.limits import job_time_limits
 
@@ -111,9 +112,14 @@ def _pointer_field(request: BatchRequest, pointer: str) -> str:
     return "methods"
 
 
-def plan_children(request: BatchRequest, settings: Settings) -> list[repository.NewJob]:
+def plan_children(
+    request: BatchRequest,
+    settings: Settings,
+    resolve: Callable[[Submission], Submission] = lambda submission: submission,
+) -> list[repository.NewJob]:
     """The validated children of ``request`` as jobs to store (owner left empty); a 422
-    naming every bad child (index, parameters, field) otherwise."""
+    naming every bad child (index, parameters, field) otherwise. ``resolve`` completes the
+    base's initial guess (from_job) before the children copy it."""
     size = batch_size(request)
     field = {"grid": "grid", "monte_carlo": "monte_carlo.samples", "methods": "methods"}
     if size > settings.max_batch_children:
@@ -127,8 +133,10 @@ def plan_children(request: BatchRequest, settings: Settings) -> list[repository.
             422, "over_server_cap", issue.message, field=issue.field, issues=[issue.model_dump()]
         )
     try:
-        base = resolve_submission(request.base)
+        base = resolve(resolve_submission(request.base))
     except ApiError as exc:
+        if exc.status == 404:  # the base's from_job is not the caller's
+            raise
         raise invalid(_prefixed(_api_issues(exc), "base"), "batch") from None
     try:
         children = expand(request, base.document)
@@ -193,7 +201,9 @@ def submit_batch(
         raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
     try:
         request = _parse(body)
-        children = plan_children(request, settings)
+        children = plan_children(
+            request, settings, functools.partial(resolve_initial_guess, database, owner)
+        )
     except ApiError:
         if quota is not None:
             quota.note_rejected()

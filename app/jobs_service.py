@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import json
 import logging
 from collections.abc import Callable
 from datetime import datetime
@@ -16,12 +17,20 @@ from app.dispatch import Dispatcher
 from app.dispatch.fair import priority_of_rank
 from app.errors import ApiError, not_found
 from app.ratelimit import Quota, Submitter
+from app.schemas import FieldIssue
+from app.schemas.guess import GUESS_COLUMNS
 from app.settings import Settings
 from app.storage import quota as quota_store
 from app.storage import repository
 from app.storage.models import ACTIVE_STATUSES, Job, JobStatus, utcnow
 from app.storage.session import Database
-from app.submission import check_method_support, request_fingerprint, resolve_submission
+from app.submission import (
+    Submission,
+    check_method_support,
+    invalid,
+    request_fingerprint,
+    resolve_submission,
+)
 from app.views import HistoryView, JobErrorInfo, JobLinks, JobPage, JobView, Progress
 from worker.limits import job_time_limits
 
@@ -177,7 +186,7 @@ def _submit(
     defer: Callable[[Callable[[], None]], None] | None = None,
 ) -> tuple[JobView, bool]:
     """:func:`submit_job` for a request that is no replay; every refusal is an ApiError."""
-    submission = resolve_submission(body)
+    submission = resolve_initial_guess(database, owner, resolve_submission(body))
     check_server_caps(submission.problem, settings)
     check_method_support(submission)
     new = repository.NewJob(
@@ -251,6 +260,37 @@ def _submit(
             mark_sent(database, job.id)
     log.info("job %s accepted for client %s (%s)", job.id, owner, job.method)
     return job_view(job, settings), False
+
+
+def resolve_initial_guess(database: Database, owner: str, submission: Submission) -> Submission:
+    """A submission whose ``initial_guess.from_job`` names one of the owner's finished jobs
+    with a trajectory, with that trajectory copied into the guess (the stored problem then
+    carries it; a later change of that job changes nothing). 404 for a job that is not the
+    owner's, 422 for one without a usable trajectory."""
+    guess = submission.problem.initial_guess
+    if guess is None or guess.from_job is None or guess.trajectory is not None:
+        return submission
+    field = "initial_guess.from_job"
+    with database.reader() as session:
+        found = repository.get_result_text(session, guess.from_job, owner)
+    if found is None:
+        raise ApiError(404, "job_not_found", f"no job {guess.from_job!r}", field=field)
+    result = json.loads(found.result_json) if found.result_json is not None else {}
+    trajectory = result.get("trajectory") or {}
+    columns = {name: trajectory.get(name) for name in GUESS_COLUMNS}
+    if any(not isinstance(v, list) or None in v for v in columns.values()):
+        issue = FieldIssue(
+            field=field,
+            message=f"job {guess.from_job} ({found.status}) has no complete trajectory to "
+            "start from",
+            code="no_trajectory",
+        )
+        raise invalid([issue])
+    document = {
+        **submission.document,
+        "initial_guess": {"from_job": guess.from_job, "trajectory": columns},
+    }
+    return resolve_submission(document)
 
 
 def mark_sent(database: Database, job_id: str) -> None:

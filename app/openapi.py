@@ -43,6 +43,7 @@ own in :data:`OPERATION_ERRORS`; 404 depends on the path (:func:`_error_codes`).
 
 OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
     ("post", "/v1/jobs"): {
+        404: ["job_not_found"],
         422: [
             "invalid_problem",
             "invalid_request",

@@ -26,6 +26,10 @@ _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorResponse}}
     summary="Submit a job",
     responses={
         202: {"description": "Stored and queued; poll the Location."},
+        404: {
+            "model": ErrorResponse,
+            "description": "initial_guess.from_job is not one of your jobs.",
+        },
         413: {"model": ErrorResponse, "description": "The body is over the size limit."},
         422: {"model": ErrorResponse, "description": "Every invalid field, or a server cap."},
         429: {

@@ -9,6 +9,7 @@ from pydantic import ConfigDict, Field, model_validator
 from app.schemas.base import FieldProblem, StrictModel, Text, raise_problems
 from app.schemas.constraints import ControlLimits, PathConstraints
 from app.schemas.examples import RLV_MIN_HEAT_LOAD
+from app.schemas.guess import InitialGuess
 from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_WAYPOINTS
 from app.schemas.methods import MethodSpec, default_method_options
 from app.schemas.objective import ObjectiveInput
@@ -76,6 +77,11 @@ class ProblemDocument(StrictModel):
     method: MethodSpec = Field(
         default_factory=default_method_options,
         description='Solution method and its options; default {"name": "energy-scp"}.',
+    )
+    initial_guess: InitialGuess | None = Field(
+        None,
+        description="Start from an earlier answer: one of your finished jobs (from_job) or an "
+        "explicit trajectory; null: the method's own guess.",
     )
 
     @model_validator(mode="after")

@@ -396,6 +396,11 @@ class Provenance(_Record):
     dynamics_note: str | None = Field(
         None, description="Why the dynamics have no compiled form (only with numpy)."
     )
+    initial_guess: str | None = Field(
+        None,
+        description="Only for a warm start: the given trajectory the method started from "
+        "(the problem's initial_guess) instead of its own guess.",
+    )
 
 
 class StartSummary(_Record):

@@ -106,6 +106,32 @@ def test_batches_of_methods_and_of_dispersions(client: TrajoptClient) -> None:
         assert client.wait_batch(batch["id"], timeout_s=120)["status"] in ("finished", "cancelled")
 
 
+def test_a_job_starts_from_an_earlier_job(client: TrajoptClient) -> None:
+    first = client.submit_scenario("rlv-max-terminal-velocity")
+    assert client.wait(first["id"], timeout_s=120)["status"] == "succeeded"
+    heat = {"path_constraints": {"heat_rate": {"max_W_m2": 1.45e6}}}
+    warm = client.submit_scenario(
+        "rlv-max-terminal-velocity",
+        overrides={**heat, "initial_guess": {"from_job": first["id"]}},
+    )
+    assert client.wait(warm["id"], timeout_s=120)["status"] == "succeeded"
+    result = client.result(warm["id"])
+    assert result["provenance"]["initial_guess"] == "the given trajectory (40 points)"
+    assert result["timing"]["iterations"] < 20  # measured 4 (36 from the method's own guess)
+    with pytest.raises(NotFoundError) as unknown:
+        client.submit_scenario(
+            SCENARIO,
+            overrides={"initial_guess": {"from_job": "4b0c3e1e-0000-4000-8000-000000000000"}},
+        )
+    assert unknown.value.field == "initial_guess.from_job"
+    queued = client.submit(long_job(SCENARIO))
+    client.cancel(queued["id"])
+    client.wait(queued["id"], timeout_s=60)
+    with pytest.raises(InvalidRequestError) as empty:
+        client.submit_scenario(SCENARIO, overrides={"initial_guess": {"from_job": queued["id"]}})
+    assert empty.value.fields == ["initial_guess.from_job"]
+
+
 @pytest.fixture(scope="module")
 def limited(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ApiServer]:
     """A server that takes one submission per client every 2 s."""

@@ -36,6 +36,10 @@ def test_clients_are_isolated_and_a_revoked_key_is_refused_at_once(
             response = b.http.get(f"/v1/jobs/{job['id']}{suffix}")
             assert response.status_code == 404, (suffix, response.text)
         assert b.http.delete(f"/v1/jobs/{job['id']}").status_code == 404
+        warm = {"scenario": scenario, "overrides": {"initial_guess": {"from_job": job["id"]}}}
+        refused = b.http.post("/v1/jobs", json=warm)  # a warm start from another client's job
+        assert refused.status_code == 404, refused.text
+        assert refused.json()["error"]["field"] == "initial_guess.from_job"
         assert b.http.get("/v1/jobs").json()["total"] == 0
         assert [j["id"] for j in a.http.get("/v1/jobs").json()["items"]] == [job["id"]]
         assert ServiceClient(api.base_url).http.get("/v1/jobs").status_code == 401

@@ -18,6 +18,7 @@ from worker.solver.aerodynamics import aero_from_spec, alpha_schedule_from_spec
 from worker.solver.atmosphere import atmosphere_from_spec
 from worker.solver.forces import VehicleForces
 from worker.solver.geometry import CircleZone
+from worker.solver.guess_path import GuessPath
 from worker.solver.path_limits import HeatRateModel, PathLimits
 from worker.solver.trajectory import TIME_STATE_NAMES
 from worker.solver.units import Scales
@@ -85,6 +86,8 @@ class EntryProblem:
     """Bound on |d alpha/dt| of an optimized angle of attack (rad per nondimensional time)."""
     initial_alpha: float | None = None
     """Optimized angle of attack at the initial time (radians); None when free."""
+    guess: GuessPath | None = None
+    """The caller's initial guess (an earlier answer); None: the method's own guess."""
 
     def radius(self, altitude_m: float) -> float:
         """Nondimensional radius of an altitude in metres."""
@@ -235,7 +238,27 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         waypoints=waypoints,
         alpha_optimized=schedule is None,
         **_optimized_alpha(doc, scales),
+        guess=_guess(doc, scales),
     )
+
+
+def _guess(doc: ProblemDocument, scales: Scales) -> GuessPath | None:
+    """The document's initial-guess trajectory, nondimensional, its time from 0."""
+    given = doc.initial_guess.trajectory if doc.initial_guess is not None else None
+    if given is None:
+        return None
+    t = np.asarray(given.time_s, dtype=float)
+    y = np.column_stack(
+        [
+            1.0 + np.asarray(given.altitude_m) / scales.radius_m,
+            np.radians(given.longitude_deg),
+            np.radians(given.latitude_deg),
+            np.asarray(given.velocity_m_s) / scales.speed_m_s,
+            np.radians(given.flight_path_angle_deg),
+            np.radians(given.heading_deg),
+        ]
+    )
+    return GuessPath(t=(t - t[0]) / scales.time_s, y=y, bank=np.radians(given.bank_deg))
 
 
 def _optimized_alpha(doc: ProblemDocument, scales: Scales) -> dict[str, Any]:

@@ -88,7 +88,15 @@ def provenance(problem: EntryProblem, options: ScpRunOptions) -> dict[str, Any]:
         "method_options": options.model_dump(mode="json"),
         "problem_name": problem.name,
         **dynamics_path(problem),
+        **_guess_note(problem),
     }
+
+
+def _guess_note(problem: EntryProblem) -> dict[str, str]:
+    """Where the method started when it was given an initial guess (nothing otherwise)."""
+    if problem.guess is None:
+        return {}
+    return {"initial_guess": f"the given trajectory ({problem.guess.t.size} points)"}
 
 
 def validated(document: dict[str, Any]) -> dict[str, Any]:

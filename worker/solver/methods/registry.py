@@ -49,4 +49,13 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     info = METHODS.get(doc.method.name)
     if info is None:
         return [issue("method.name", f"unknown method {doc.method.name!r}", "unknown_method")]
-    return info.check(doc)
+    out = list(info.check(doc))
+    if doc.initial_guess is not None and doc.initial_guess.trajectory is None:
+        out.append(
+            issue(
+                "initial_guess.from_job",
+                "only the service resolves from_job (it copies that job's trajectory); "
+                "here give initial_guess.trajectory",
+            )
+        )
+    return out

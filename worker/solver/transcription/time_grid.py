@@ -173,3 +173,21 @@ def initial_reference(
             "flight time; give method.initial_bank_deg"
         )
     return Reference(z=z[best], w=np.zeros(nodes), s=s, bank_deg=float(candidates[best]))
+
+
+def guess_reference(problem: EntryProblem, nodes: int) -> Reference:
+    """The caller's initial guess (``problem.guess``) on a uniform grid: its states and bank
+    interpolated in time scaled to the final time, the given initial state and bank at the
+    first node, the bank within its range and its rate the guess's slope (within its bound)."""
+    assert problem.final_time is not None and problem.guess is not None
+    s = uniform_intervals(problem.final_time, nodes)
+    t = np.concatenate([[0.0], np.cumsum(s)])
+    y, bank = problem.guess.on_times(t)
+    y[0] = problem.y0
+    if problem.initial_bank is not None:
+        bank[0] = problem.initial_bank
+    bank = np.clip(bank, problem.bank_min, problem.bank_max)
+    w = np.gradient(bank, t)
+    if problem.bank_rate_max is not None:
+        w = np.clip(w, -problem.bank_rate_max, problem.bank_rate_max)
+    return Reference(z=np.column_stack([y, bank]), w=w, s=s, bank_deg=math.degrees(bank[0]))

@@ -38,3 +38,15 @@ def initial_guess(problem: EntryProblem, e: Array) -> tuple[Array, Array]:
     s = (e - e[0]) / (e[-1] - e[0])
     x = x0[None, :] + s[:, None] * (xf - x0)[None, :]
     return x, np.zeros((e.size, 2))
+
+
+def guess_in_energy(problem: EntryProblem, e: Array) -> tuple[Array, Array]:
+    """The caller's initial guess (``problem.guess``) on the energy grid ``e``: its states
+    interpolated in energy (its energy range mapped onto e's), the initial state at the first
+    node, and the bank as the control [cos, sin] (the guess's bank within the bank range)."""
+    assert problem.guess is not None
+    y, bank = problem.guess.on_energies(e)
+    x = y[:, list(TIME_INDEX)]
+    x[0] = problem.y0[list(TIME_INDEX)]
+    bank = np.clip(bank, problem.bank_min, problem.bank_max)
+    return x, np.column_stack([np.cos(bank), np.sin(bank)])

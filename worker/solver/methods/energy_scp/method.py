@@ -31,7 +31,12 @@ from app.schemas.methods import EnergyScpOptions
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.energy_scp.controls import GAP_TOL, bank_chatter, lift_preserving
-from worker.solver.methods.energy_scp.guess import TIME_INDEX, energy_bounds, initial_guess
+from worker.solver.methods.energy_scp.guess import (
+    TIME_INDEX,
+    energy_bounds,
+    guess_in_energy,
+    initial_guess,
+)
 from worker.solver.methods.energy_scp.objective import EnergyObjective
 from worker.solver.methods.energy_scp.records import iteration_record
 from worker.solver.methods.energy_scp.regularization import ConeRegularization
@@ -149,7 +154,7 @@ class EnergyScp:
     def start(self) -> EnergyIterate:
         """The straight-line guess; fails when no altitude meets the path limits somewhere."""
         p, e = self.problem, self.e
-        x, u = initial_guess(p, e)
+        x, u = initial_guess(p, e) if p.guess is None else guess_in_energy(p, e)
         if p.limits.any:
             self.r_lower, feasible = radius_lower_bound(p.forces, p.limits, e, 1.0, self.r_ceiling)
             if not np.all(feasible):

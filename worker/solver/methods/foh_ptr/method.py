@@ -39,6 +39,7 @@ from worker.solver.transcription.foh_subproblem import FohSubproblem
 from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import (
     InitialGuessError,
+    guess_reference,
     initial_reference,
     sign_start_banks,
 )
@@ -160,7 +161,12 @@ class FohPtr:
         self.curvature: Future[Array | None] | None = None
 
     def start(self) -> FohIterate:
-        """The constant-bank initial reference that best meets the terminal conditions."""
+        """The caller's initial guess on the grid, else the constant-bank reference that best
+        meets the terminal conditions."""
+        if self.problem.guess is not None:  # the caller's earlier answer
+            ref = guess_reference(self.problem, self.options.nodes)
+            self.extra["initial_guess"] = "trajectory"
+            return FohIterate(ref.z, ref.w, ref.s)
         try:
             ref = initial_reference(self.problem, self.options.nodes, self.start_bank_deg)
         except InitialGuessError as exc:  # the method cannot start: a failed job, not an error
@@ -307,7 +313,11 @@ def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]
     """Run paper 002's SCP on ``problem`` (fixed final time) with its ``options``."""
     if compiled_parameters(problem.forces, problem.omega) is not None:
         warm_up()  # compile or load the kernels before the clock starts (at once when loaded)
-    free_bank = options.initial_bank_deg is None and problem.initial_bank_deg is None
+    free_bank = (
+        options.initial_bank_deg is None
+        and problem.initial_bank_deg is None
+        and problem.guess is None  # a guess sets the bank's sign: one start from it
+    )
     banks = (
         sign_start_banks(problem, options.nodes) if free_bank and options.bank_sign_starts else []
     )

@@ -1,0 +1,94 @@
+"""An initial guess: start a method from an earlier answer instead of its own guess."""
+
+from __future__ import annotations
+
+from typing import Self
+
+from pydantic import Field, model_validator
+
+from app.schemas.base import FieldProblem, StrictModel, raise_problems
+
+MAX_GUESS_POINTS = 20_000
+"""Points a guess trajectory may have (a 1 000-node result's propagated flight has ~20 000)."""
+
+GUESS_COLUMNS = (
+    "time_s",
+    "altitude_m",
+    "longitude_deg",
+    "latitude_deg",
+    "velocity_m_s",
+    "flight_path_angle_deg",
+    "heading_deg",
+    "bank_deg",
+)
+"""The columns of a guess trajectory (those of a result's trajectory that a start needs)."""
+
+
+def _column(description: str) -> list[float]:
+    column: list[float] = Field(
+        ..., min_length=2, max_length=MAX_GUESS_POINTS, description=description
+    )
+    return column
+
+
+class GuessTrajectory(StrictModel):
+    """A trajectory as columns, one value per point, in the units of their names (the columns
+    of a result's ``trajectory``); time increasing. A method interpolates it onto its own grid
+    (linearly, in time scaled to its final time, or in energy)."""
+
+    time_s: list[float] = _column("Time of each point, s, strictly increasing.")
+    altitude_m: list[float] = _column("Altitude, m.")
+    longitude_deg: list[float] = _column("Longitude, deg.")
+    latitude_deg: list[float] = _column("Latitude, deg.")
+    velocity_m_s: list[float] = _column("Relative speed, m/s (positive).")
+    flight_path_angle_deg: list[float] = _column("Flight-path angle, deg.")
+    heading_deg: list[float] = _column("Heading, deg.")
+    bank_deg: list[float] = _column("Bank angle, deg.")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Self:
+        problems: list[FieldProblem] = []
+        count = len(self.time_s)
+        for name in GUESS_COLUMNS[1:]:
+            if len(getattr(self, name)) != count:
+                problems.append(
+                    FieldProblem(
+                        (name,),
+                        "length_mismatch",
+                        f"has {len(getattr(self, name))} values, time_s has {count}",
+                    )
+                )
+        steps = [b - a for a, b in zip(self.time_s, self.time_s[1:], strict=False)]
+        if any(step <= 0 for step in steps):
+            at = next(i for i, step in enumerate(steps) if step <= 0) + 1
+            problems.append(
+                FieldProblem(("time_s", at), "not_increasing", "must be strictly increasing")
+            )
+        if any(v <= 0 for v in self.velocity_m_s):
+            at = next(i for i, v in enumerate(self.velocity_m_s) if v <= 0)
+            problems.append(FieldProblem(("velocity_m_s", at), "not_positive", "must be > 0"))
+        raise_problems("initial_guess.trajectory", problems)
+        return self
+
+
+class InitialGuess(StrictModel):
+    """Where a method starts: ``from_job`` (one of the caller's finished jobs with a
+    trajectory; the service copies its trajectory here) or an explicit ``trajectory``."""
+
+    from_job: str | None = Field(
+        None,
+        pattern=r"^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}$",
+        description="Id of one of your finished jobs whose trajectory to start from.",
+    )
+    trajectory: GuessTrajectory | None = Field(
+        None, description="The trajectory to start from (filled in by the service for from_job)."
+    )
+
+    @model_validator(mode="after")
+    def _something(self) -> Self:
+        if self.from_job is None and self.trajectory is None:
+            raise_problems(
+                "initial_guess",
+                [FieldProblem((), "missing", "give from_job or trajectory")],
+            )
+        return self
