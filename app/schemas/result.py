@@ -56,6 +56,11 @@ class Failure(_Record):
         "(docs/problem-contract.md lists when each is given).",
     )
     message: str = Field(..., description="What happened, for people.")
+    advice: list[str] = Field(
+        default_factory=list,
+        description="What to change to make it succeed, most likely first, each naming the "
+        "field and the figure that points to it (absent when there is nothing to suggest).",
+    )
 
 
 class ObjectiveValue(_Record):

@@ -374,7 +374,16 @@ async function showResult(base, jobId) {
     `optimization ${seconds(timing.wall_s)} s (conic ${seconds(timing.conic_solve_s)} s), ` +
     `verification ${seconds(timing.verification_s)} s, ${fmt(timing.iterations)} iterations`;
   if (result.failure) {
-    document.getElementById("failure").textContent = `${result.failure.code}: ${result.failure.message}`;
+    const failure = document.getElementById("failure");
+    failure.textContent = `${result.failure.code}: ${result.failure.message}`;
+    const advice = result.failure.advice || [];
+    if (advice.length) {
+      const list = el("ul", null, { id: "advice" });
+      for (const hint of advice) {
+        list.append(el("li", `try: ${hint}`));
+      }
+      failure.append(list);
+    }
   }
   const links = document.getElementById("links");
   links.replaceChildren(

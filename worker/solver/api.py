@@ -14,6 +14,7 @@ import numpy as np
 
 from app.schemas import ProblemDocument
 from app.schemas.result import json_ready
+from worker.solver.diagnosis import BUDGET_CODES, advice, stall_note
 from worker.solver.finite import non_finite_entries
 from worker.solver.methods import METHODS, check_support
 from worker.solver.models.bank_state_compiled import compiled_parameters
@@ -252,6 +253,7 @@ def solve_problem(
                 else []
             )
             _judge(document, report, violations, outcome.failure_message)
+    explain(document, problem.method)
     document["timing"] = {
         "wall_s": wall,
         "conic_solve_s": outcome.conic_solve_s,
@@ -260,3 +262,18 @@ def solve_problem(
         "total_s": time.perf_counter() - start,
     }
     return validated(document)
+
+
+def explain(document: dict[str, Any], options: Any) -> None:
+    """Add to a failed result what was still moving when a budget ran out and what a user can
+    change (``failure.advice``); a cancelled one is left as it is."""
+    failure = document.get("failure")
+    if document["status"] in ("succeeded", "cancelled") or not failure:
+        return
+    if failure["code"] in BUDGET_CODES:
+        note = stall_note(document["history"], options)
+        if note:
+            failure["message"] = f"{failure['message']}; {note}"
+    hints = advice(document, options)
+    if hints:
+        failure["advice"] = hints

@@ -231,6 +231,7 @@ def _summary(result: dict[str, Any]) -> str:
     lines = [f"status: {result['status']}"]
     if result.get("failure"):
         lines.append(f"reason: {result['failure']['code']}: {result['failure']['message']}")
+        lines.extend(f"  try: {hint}" for hint in result["failure"].get("advice", []))
     obj = result.get("objective")
     if obj and obj.get("value") is not None:
         lines.append(f"objective {obj['name']}: {obj['value']:.6g} {obj['units']}")

@@ -1,0 +1,95 @@
+"""What a failed result tells its user to change (pure logic on hand-made result documents):
+the stall of a run out of budget, a limit out of reach, a mesh too coarse between nodes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from app.schemas.methods.energy_scp import EnergyScpOptions
+from app.schemas.methods.foh_ptr import FohPtrOptions
+from worker.solver.api import explain
+from worker.solver.diagnosis import advice, stall_note
+
+FOH = FohPtrOptions(name="foh-ptr", grid="uniform", nodes=40, max_iterations=30)
+ENERGY = EnergyScpOptions(name="energy-scp", nodes=121)
+
+
+def _failed(code: str, verification: dict[str, Any] | None = None, **extra: Any) -> dict[str, Any]:
+    return {
+        "status": "failed",
+        "failure": {"code": code, "message": "why"},
+        "history": extra.get("history", []),
+        "verification": verification,
+    }
+
+
+def test_a_run_out_of_iterations_says_what_still_moved_and_what_to_raise() -> None:
+    history = [
+        {"iteration": 1, "max_state_change": {"altitude_m": 5000.0}, "virtual_control_norm": 1.0},
+        {
+            "iteration": 2,
+            "max_state_change": {"altitude_m": 412.0, "heading_deg": 0.01, "velocity_m_s": 30.0},
+            "virtual_control_norm": 3e-3,
+        },
+    ]
+    note = stall_note(history, FOH)
+    assert note is not None
+    # velocity 30 m/s is 6 x its 5 m/s tolerance, altitude 412 m 4.1 x its 100 m: farthest first
+    assert note.startswith(
+        "the last step (iteration 2) still moved velocity_m_s by 30 (tolerance 5), "
+        "altitude_m by 412"
+    )
+    assert "heading_deg" not in note  # within its tolerance
+    assert "virtual control was 0.003" in note
+    document = _failed(
+        "max_iterations", {"path_maxima": {"heat_rate_W_m2": {"within": False}}}, history=history
+    )
+    explain(document, FOH)
+    assert document["failure"]["message"] == f"why; {note}"
+    # an unconverged iterate misses its limits: only the budget is advised
+    assert document["failure"]["advice"] == [
+        "raise method.max_iterations (it was 30): the iterates were still moving; or start "
+        "from a neighbouring answer (initial_guess)"
+    ]
+
+
+def test_a_limit_out_of_reach_names_its_field_and_the_flown_peak() -> None:
+    peak = {"max": 6.0e6, "limit": 1.0e6, "ratio": 6.0, "at_time_s": 296.0, "within": False}
+    hints = advice(_failed("infeasible", {"path_maxima": {"heat_rate_W_m2": peak}}), ENERGY)
+    assert hints[0] == (
+        "the flown heat-rate peaks at 6.000 x its limit at t = 296 s: the limit may be out of "
+        "reach; relax path_constraints.heat_rate.max_W_m2"
+    )
+    assert hints[-1] == "if the limits and targets are right: more nodes (method.nodes, now 121)"
+
+
+def test_a_converged_answer_failing_between_nodes_asks_for_a_finer_mesh() -> None:
+    verification = {
+        "path_maxima": {"load_factor_g": {"ratio": 1.04, "at_time_s": 900.0, "within": False}},
+        "terminal_error_vs_target": {
+            "altitude_m": {"within": False},
+            "heading_deg": {"within": True},
+        },
+        "no_fly_zones": [{"name": "wall", "min_clearance_deg": -0.2, "within": False}],
+        "control_limits": {"bank_deg": {"ratio": 1.3, "within": False}},
+    }
+    hints = advice(_failed("verification_failed", verification), FOH)
+    finer = "more nodes (method.nodes, now 40), or the adaptive grid (method.grid)"
+    assert hints == [
+        f"the flown load-factor peaks at 1.040 x its limit at t = 900 s, between nodes: {finer}",
+        "the flight misses terminal altitude_m although the nodes meet them: the dynamics are "
+        f"resolved too coarsely; {finer}",
+        f"no-fly zone wall entered by 0.200 deg of arc on the flown path: {finer}",
+        f"the flown bank_deg reaches 1.300 x its limit between nodes: {finer}",
+    ]
+
+
+def test_succeeded_and_cancelled_results_are_left_alone() -> None:
+    for status in ("succeeded", "cancelled"):
+        document = {
+            "status": status,
+            "failure": {"code": "cancelled", "message": "m"},
+            "history": [],
+        }
+        explain(document, FOH)
+        assert "advice" not in document["failure"] and document["failure"]["message"] == "m"
