@@ -80,6 +80,8 @@ def batch_size(request: BatchRequest) -> int:
         return math.prod(len(p.values) for p in request.grid.parameters)
     if request.monte_carlo is not None:
         return request.monte_carlo.samples
+    if request.footprint is not None:
+        return len(request.footprint.longitudes_deg) * len(request.footprint.extremes)
     return len(request.methods or [])
 
 
@@ -128,6 +130,17 @@ def expand(request: BatchRequest, base: dict[str, Any]) -> list[Child]:
                 set_at(document, dispersion.path, value)
                 drawn[dispersion.path] = value
             children.append(Child(index, drawn, document))
+    elif request.footprint is not None:
+        sweep = request.footprint
+        edges = [(lon, edge) for lon in sweep.longitudes_deg for edge in sweep.extremes]
+        for index, (longitude, edge) in enumerate(edges):
+            document = copy.deepcopy(base)
+            set_at(document, "/terminal/longitude_deg", longitude)
+            set_at(document, "/terminal/latitude_deg", {"kind": "free"})
+            document["objective"] = edge
+            children.append(
+                Child(index, {"/terminal/longitude_deg": longitude, "/objective": edge}, document)
+            )
     else:
         for index, method in enumerate(request.methods or []):
             document = copy.deepcopy(base)

@@ -109,7 +109,7 @@ def _pointer_field(request: BatchRequest, pointer: str) -> str:
         paths = [d.path for d in request.monte_carlo.dispersions]
         where = f"[{paths.index(pointer)}].path" if pointer in paths else ""
         return f"monte_carlo.dispersions{where}"
-    return "methods"
+    return "footprint" if request.footprint is not None else "methods"
 
 
 def plan_children(
@@ -121,7 +121,12 @@ def plan_children(
     naming every bad child (index, parameters, field) otherwise. ``resolve`` completes the
     base's initial guess (from_job) before the children copy it."""
     size = batch_size(request)
-    field = {"grid": "grid", "monte_carlo": "monte_carlo.samples", "methods": "methods"}
+    field = {
+        "grid": "grid",
+        "monte_carlo": "monte_carlo.samples",
+        "methods": "methods",
+        "footprint": "footprint.longitudes_deg",
+    }
     if size > settings.max_batch_children:
         issue = FieldIssue(
             field=field[request.kind],
@@ -333,6 +338,8 @@ def parameter_paths(batch: Batch) -> list[str]:
         return [p["path"] for p in request["grid"]["parameters"]]
     if batch.kind == "monte_carlo":
         return [d["path"] for d in request["monte_carlo"]["dispersions"]]
+    if batch.kind == "footprint":
+        return ["/terminal/longitude_deg", "/objective"]
     return ["/method"]
 
 
@@ -358,6 +365,13 @@ def summary_table(database: Database, owner: str, batch_id: str) -> str:
 
 
 def summary_plot(database: Database, owner: str, batch_id: str, fmt: str) -> bytes:
-    """The batch's plot (PNG or SVG)."""
+    """The batch's plot (PNG or SVG); a footprint's with each child's flown ground track."""
     table = summary(database, owner, batch_id)
-    return render_summary_plot(table.batch.kind, table.rows, table.parameters, fmt)
+    tracks: list[tuple[list[float], list[float]]] = []
+    if table.batch.kind == "footprint":
+        with database.reader() as session:
+            for child in repository.batch_children(session, batch_id, owner):
+                flown = ((child.result or {}).get("verification") or {}).get("propagated") or {}
+                if child.status == "succeeded" and flown.get("longitude_deg"):
+                    tracks.append((flown["longitude_deg"], flown["latitude_deg"]))
+    return render_summary_plot(table.batch.kind, table.rows, table.parameters, fmt, tracks)

@@ -240,7 +240,7 @@ class BatchView(BaseModel):
 
     id: str
     name: str | None = None
-    kind: Literal["grid", "monte_carlo", "methods"]
+    kind: Literal["grid", "monte_carlo", "methods", "footprint"]
     size: int = Field(..., description="Number of children (each an ordinary job).")
     status: Literal["running", "finished", "cancelled"] = Field(
         ...,

@@ -197,10 +197,62 @@ def _methods_plot(fig: Figure, rows: Sequence[Mapping[str, Any]]) -> None:
     ax.set_title("One problem, several methods")
 
 
+def _footprint_plot(
+    fig: Figure,
+    rows: Sequence[Mapping[str, Any]],
+    tracks: Sequence[tuple[Sequence[float], Sequence[float]]],
+) -> None:
+    """The reachable set: each longitude's highest and lowest reached final latitude joined
+    into an envelope, over the children's flown ground tracks."""
+    ax = fig.add_subplot()
+    for lon, lat in tracks:
+        ax.plot(lon, lat, color="#9db4d0", linewidth=0.8)
+    edges: dict[str, list[tuple[float, float]]] = {}
+    for row in rows:
+        lon, lat = row["final_longitude_deg"], row["final_latitude_deg"]
+        if row["status"] == "succeeded" and lon is not None and lat is not None:
+            edges.setdefault(str(row["parameters"].get("/objective")), []).append((lon, lat))
+    upper = sorted(edges.get("max_final_latitude", []))
+    lower = sorted(edges.get("min_final_latitude", []), reverse=True)
+    ring = upper + lower
+    if len(ring) >= 3:
+        ax.fill(
+            [p[0] for p in ring],
+            [p[1] for p in ring],
+            color="#1f77b4",
+            alpha=0.2,
+            label="reachable final points",
+        )
+    for points, style, label in (
+        (upper, "o-", "highest final latitude"),
+        (lower, "s-", "lowest final latitude"),
+    ):
+        if points:
+            ax.plot([p[0] for p in points], [p[1] for p in points], style, label=label)
+    failed = [r for r in rows if r["status"] != "succeeded"]
+    if failed:
+        ax.plot(
+            [r["parameters"].get("/terminal/longitude_deg") for r in failed],
+            [np.nan] * len(failed),
+            "x",
+            color=ZONE_COLOR,
+            label=f"{len(failed)} not reached",
+        )
+    ax.set_xlabel("longitude (deg)")
+    ax.set_ylabel("latitude (deg)")
+    ax.set_title("Footprint: the reachable final points and the flown ground tracks")
+    ax.legend(loc="best", fontsize="small")
+
+
 def render_summary_plot(
-    kind: str, rows: Sequence[Mapping[str, Any]], paths: Sequence[str], fmt: str
+    kind: str,
+    rows: Sequence[Mapping[str, Any]],
+    paths: Sequence[str],
+    fmt: str,
+    tracks: Sequence[tuple[Sequence[float], Sequence[float]]] = (),
 ) -> bytes:
-    """The batch's plot as PNG or SVG bytes."""
+    """The batch's plot as PNG or SVG bytes (``tracks``: the flown ground tracks of a
+    footprint's children)."""
     if fmt not in PLOT_FORMATS:
         raise ValueError(f"format must be one of {sorted(PLOT_FORMATS)}, got {fmt!r}")
     fig = Figure(figsize=FIGURE_SIZE_IN, dpi=DPI, layout="constrained")
@@ -209,6 +261,8 @@ def render_summary_plot(
         _grid_plot(fig, rows, paths)
     elif kind == "monte_carlo":
         _monte_carlo_plot(fig, rows)
+    elif kind == "footprint":
+        _footprint_plot(fig, rows, tracks)
     else:
         _methods_plot(fig, rows)
     buffer = io.BytesIO()

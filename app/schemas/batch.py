@@ -7,6 +7,10 @@ from typing import Any, Literal, Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+BatchKind = Literal["grid", "monte_carlo", "methods", "footprint"]
+KINDS: tuple[BatchKind, ...] = ("grid", "monte_carlo", "methods", "footprint")
+"""The ways a batch's children differ from its base problem."""
+
 POINTER_PATTERN = r"^(/([^/~]|~[01])*)+$"
 """A JSON pointer (RFC 6901) to a member of the problem document, not the whole document."""
 
@@ -77,9 +81,28 @@ class MonteCarloSpec(_Strict):
     dispersions: list[Dispersion] = Field(..., min_length=1)
 
 
+Edge = Literal["max_final_latitude", "min_final_latitude"]
+EDGES: tuple[Edge, ...] = ("max_final_latitude", "min_final_latitude")
+
+
+class FootprintSpec(_Strict):
+    """The reachable set of terminal points: at each final longitude, the largest and the
+    smallest final latitude the vehicle can reach (the base's other terminal conditions and
+    limits kept, its final latitude left free): two children per longitude."""
+
+    longitudes_deg: list[float] = Field(
+        ..., min_length=2, max_length=50, description="Final longitudes to sweep, deg."
+    )
+    extremes: list[Edge] = Field(
+        default_factory=lambda: list(EDGES),
+        min_length=1,
+        description="Which edges of the footprint to find (default both).",
+    )
+
+
 class BatchRequest(_Strict):
     """A base problem (a problem document, or ``{"scenario", "overrides", "method"}``) and
-    exactly one of ``grid``, ``monte_carlo`` or ``methods``."""
+    exactly one of ``grid``, ``monte_carlo``, ``methods`` or ``footprint``."""
 
     name: str | None = Field(None, max_length=200, description="A label for the batch.")
     base: dict[str, Any] = Field(
@@ -93,20 +116,19 @@ class BatchRequest(_Strict):
         description="Method comparison: each entry is a child's whole `method` object (name "
         "and options) on the same problem.",
     )
+    footprint: FootprintSpec | None = None
 
     @model_validator(mode="after")
     def _one_kind(self) -> Self:
-        given = [k for k in ("grid", "monte_carlo", "methods") if getattr(self, k) is not None]
+        given = [k for k in KINDS if getattr(self, k) is not None]
         if len(given) != 1:
             raise ValueError(
-                "give exactly one of grid, monte_carlo or methods"
+                "give exactly one of grid, monte_carlo, methods or footprint"
                 + (f" (got {', '.join(given)})" if given else "")
             )
         return self
 
     @property
-    def kind(self) -> Literal["grid", "monte_carlo", "methods"]:
+    def kind(self) -> BatchKind:
         """Which way the children differ."""
-        if self.grid is not None:
-            return "grid"
-        return "monte_carlo" if self.monte_carlo is not None else "methods"
+        return next(k for k in KINDS if getattr(self, k) is not None)

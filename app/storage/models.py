@@ -136,7 +136,9 @@ class Batch(Base):
     __tablename__ = "batches"
     __table_args__ = (
         UniqueConstraint("owner", "idempotency_key", name="uq_batches_owner_idempotency_key"),
-        CheckConstraint("kind IN ('grid','monte_carlo','methods')", name="ck_batches_kind"),
+        CheckConstraint(
+            "kind IN ('grid','monte_carlo','methods','footprint')", name="ck_batches_kind"
+        ),
         Index("ix_batches_owner_created", "owner", "created_at"),
     )
 

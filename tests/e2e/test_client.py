@@ -106,6 +106,29 @@ def test_batches_of_methods_and_of_dispersions(client: TrajoptClient) -> None:
         assert client.wait_batch(batch["id"], timeout_s=120)["status"] in ("finished", "cancelled")
 
 
+def test_a_footprint_holds_the_base_problems_own_terminal_point(client: TrajoptClient) -> None:
+    batch = client.submit_batch(
+        {
+            "base": {"scenario": "rlv-max-terminal-velocity"},
+            "footprint": {"longitudes_deg": [6, 12, 18]},
+        }
+    )
+    assert client.wait_batch(batch["id"], timeout_s=240)["status"] == "finished"
+    rows = client.batch_summary(batch["id"])["rows"]
+    assert [r["status"] for r in rows] == ["succeeded"] * 6, rows
+    edges = {
+        (r["parameters"]["/terminal/longitude_deg"], r["parameters"]["/objective"]): r for r in rows
+    }
+    top, bottom = edges[(12, "max_final_latitude")], edges[(12, "min_final_latitude")]
+    # case 1 itself flies to 12 deg E, 70 deg N: inside its own footprint (measured 65.6 .. 76.0)
+    assert bottom["final_latitude_deg"] < 70.0 < top["final_latitude_deg"]
+    for row in rows:  # each child flew to its own final longitude
+        assert row["final_longitude_deg"] == pytest.approx(
+            row["parameters"]["/terminal/longitude_deg"], abs=0.1
+        )
+    assert client.batch_plot(batch["id"], "svg").lstrip().startswith(b"<?xml")
+
+
 def test_a_job_starts_from_an_earlier_job(client: TrajoptClient) -> None:
     first = client.submit_scenario("rlv-max-terminal-velocity")
     assert client.wait(first["id"], timeout_s=120)["status"] == "succeeded"

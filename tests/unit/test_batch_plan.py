@@ -104,6 +104,26 @@ def test_methods_replace_the_whole_method() -> None:
     assert children[1].parameters == {"/method": {"name": "energy-scp"}}
 
 
+def test_a_footprint_frees_the_final_latitude_and_seeks_each_edge_per_longitude() -> None:
+    base = {**BASE, "terminal": {"longitude_deg": 12.0, "latitude_deg": 70.0}, "objective": "x"}
+    request = _request(footprint={"longitudes_deg": [0.0, 12.0, 30.0]})
+    children = expand(request, base)
+    assert batch_size(request) == len(children) == 6
+    assert [c.parameters for c in children[:2]] == [
+        {"/terminal/longitude_deg": 0.0, "/objective": "max_final_latitude"},
+        {"/terminal/longitude_deg": 0.0, "/objective": "min_final_latitude"},
+    ]
+    assert children[5].document["terminal"] == {
+        "longitude_deg": 30.0,
+        "latitude_deg": {"kind": "free"},
+    }
+    assert children[5].document["objective"] == "min_final_latitude"
+    only_north = _request(
+        footprint={"longitudes_deg": [0.0, 5.0], "extremes": ["max_final_latitude"]}
+    )
+    assert batch_size(only_north) == 2
+
+
 @pytest.mark.parametrize(
     ("body", "message"),
     [

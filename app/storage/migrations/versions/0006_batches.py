@@ -34,7 +34,9 @@ def upgrade() -> None:
         sa.Column("cancel_requested", sa.Boolean(), nullable=False),
         sa.Column("created_at", UtcDateTime(), nullable=False),
         sa.UniqueConstraint("owner", "idempotency_key", name="uq_batches_owner_idempotency_key"),
-        sa.CheckConstraint("kind IN ('grid','monte_carlo','methods')", name="ck_batches_kind"),
+        sa.CheckConstraint(
+            "kind IN ('grid','monte_carlo','methods','footprint')", name="ck_batches_kind"
+        ),
     )
     op.create_index("ix_batches_owner_created", "batches", ["owner", "created_at"])
     with op.batch_alter_table("jobs") as batch:
