@@ -147,3 +147,30 @@ def expand(request: BatchRequest, base: dict[str, Any]) -> list[Child]:
             document["method"] = copy.deepcopy(method)
             children.append(Child(index, {"/method": method}, document))
     return children
+
+
+def parameter_distance(a: dict[str, Any], b: dict[str, Any]) -> float:
+    """How far two children's parameters are: the root of the summed squared relative
+    differences of the numbers; infinite when another parameter (a method, an objective, a
+    non-number) differs."""
+    total = 0.0
+    for path in a.keys() | b.keys():
+        x, y = a.get(path), b.get(path)
+        numbers = all(isinstance(v, int | float) and not isinstance(v, bool) for v in (x, y))
+        if numbers:
+            assert isinstance(x, int | float) and isinstance(y, int | float)
+            scale = max(abs(x), abs(y), 1e-12)
+            total += ((x - y) / scale) ** 2
+        elif x != y:
+            return math.inf
+    return math.sqrt(total)
+
+
+def nearest(parameters: dict[str, Any], candidates: list[tuple[str, dict[str, Any]]]) -> str | None:
+    """The id of the candidate whose parameters are nearest (None when none is comparable)."""
+    best: tuple[float, str] | None = None
+    for ident, other in candidates:
+        distance = parameter_distance(parameters, other)
+        if math.isfinite(distance) and (best is None or distance < best[0]):
+            best = (distance, ident)
+    return best[1] if best else None

@@ -302,6 +302,25 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
     )
 
 
+def _chained(database: Any, claim: Any, problem_raw: dict[str, Any]) -> dict[str, Any]:
+    """The problem of a chained batch's child, started from its nearest finished sibling; as
+    stored when that cannot be read (the child then starts from the method's own guess)."""
+    from app.schemas import ProblemDocument
+    from worker.chaining import with_sibling_guess
+    from worker.solver.methods import check_support
+
+    try:
+        chained = with_sibling_guess(
+            database, claim.batch_id, claim.batch_parameters or {}, problem_raw
+        )
+        if chained is not problem_raw and check_support(ProblemDocument.model_validate(chained)):
+            return problem_raw  # the child's method takes no initial guess
+        return chained
+    except Exception:
+        log.warning("job's sibling guess could not be read; it starts cold", exc_info=True)
+        return problem_raw
+
+
 def execute_job(
     job_id: str,
     *,
@@ -337,6 +356,8 @@ def execute_job(
         passthrough=timeout_exceptions,
         lease_s=settings.lease_s,
     )
+    if claim.batch_id is not None:
+        problem_raw = _chained(database, claim, problem_raw)
     log.info("job %s: attempt %d started", job_id, claim.attempt)
     attempt.heartbeat = Heartbeat(database, job_id, claim.attempt, settings.lease_s)
     attempt.heartbeat.start()

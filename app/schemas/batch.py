@@ -117,6 +117,12 @@ class BatchRequest(_Strict):
         "and options) on the same problem.",
     )
     footprint: FootprintSpec | None = None
+    chain: bool = Field(
+        False,
+        description="Start each child from the answer of its nearest sibling finished by then "
+        "(nearest in the parameters; same non-numeric parameters) instead of the method's own "
+        "guess; the children still run in parallel.",
+    )
 
     @model_validator(mode="after")
     def _one_kind(self) -> Self:

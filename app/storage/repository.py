@@ -271,6 +271,8 @@ class Claim:
     state: ClaimState
     attempt: int = 0
     problem: dict[str, Any] | None = field(default=None, compare=False)
+    batch_id: str | None = None
+    batch_parameters: dict[str, Any] | None = field(default=None, compare=False)
 
 
 def _claimable(now: datetime) -> Any:
@@ -312,12 +314,12 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int, lease_s: flo
             progress=None,
             history=[],
         )
-        .returning(Job.attempts, Job.problem)
+        .returning(Job.attempts, Job.problem, Job.batch_id, Job.batch_parameters)
         .execution_options(**_NO_SYNC)
     )
     claimed = session.execute(stmt).one_or_none()
     if claimed is not None:
-        return Claim(ClaimState.CLAIMED, int(claimed[0]), claimed[1])
+        return Claim(ClaimState.CLAIMED, int(claimed[0]), claimed[1], claimed[2], claimed[3])
     job = session.execute(
         select(Job.status, Job.attempts, Job.cancel_requested, Job.lease_expires_at).where(
             Job.id == job_id
@@ -1009,6 +1011,31 @@ def batch_children(
                 result=row.result,
             )
         start += chunk
+
+
+def chained_batch(session: Session, batch_id: str) -> bool:
+    """Whether the batch chains its children (each starts from its nearest finished sibling)."""
+    found = session.execute(
+        select(Batch.request["chain"].as_boolean()).where(Batch.id == batch_id)
+    ).scalar_one_or_none()
+    return bool(found)
+
+
+def finished_siblings(session: Session, batch_id: str) -> list[tuple[str, dict[str, Any]]]:
+    """(id, parameters) of the batch's children that succeeded so far."""
+    rows = session.execute(
+        select(Job.id, Job.batch_parameters).where(
+            Job.batch_id == batch_id, Job.status == JobStatus.SUCCEEDED.value
+        )
+    )
+    return [(str(job_id), dict(parameters or {})) for job_id, parameters in rows]
+
+
+def job_trajectory(session: Session, job_id: str) -> dict[str, Any] | None:
+    """The trajectory of a job's result document (None without one)."""
+    result = session.execute(select(Job.result).where(Job.id == job_id)).scalar_one_or_none()
+    trajectory = (result or {}).get("trajectory")
+    return trajectory if isinstance(trajectory, dict) else None
 
 
 def cancel_batch(session: Session, batch_id: str, owner: str) -> Batch | None:

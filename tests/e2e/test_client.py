@@ -129,6 +129,28 @@ def test_a_footprint_holds_the_base_problems_own_terminal_point(client: TrajoptC
     assert client.batch_plot(batch["id"], "svg").lstrip().startswith(b"<?xml")
 
 
+def test_a_chained_batch_starts_each_child_from_a_finished_sibling(client: TrajoptClient) -> None:
+    limits = [1.5e6, 1.48e6, 1.46e6, 1.44e6]
+    batch = client.submit_batch(
+        {
+            "base": {"scenario": "rlv-max-terminal-velocity"},
+            "grid": {
+                "parameters": [{"path": "/path_constraints/heat_rate/max_W_m2", "values": limits}]
+            },
+            "chain": True,
+        }
+    )
+    assert client.wait_batch(batch["id"], timeout_s=240)["status"] == "finished"
+    rows = client.batch_summary(batch["id"])["rows"]
+    assert [r["status"] for r in rows] == ["succeeded"] * 4, rows
+    results = [client.result(r["job_id"]) for r in rows]
+    # one local worker: the children run in order, the first from the method's own guess
+    assert "initial_guess" not in results[0]["provenance"]
+    for result in results[1:]:
+        assert result["provenance"]["initial_guess"] == "the given trajectory (40 points)"
+        assert result["timing"]["iterations"] <= 0.75 * results[0]["timing"]["iterations"]
+
+
 def test_a_job_starts_from_an_earlier_job(client: TrajoptClient) -> None:
     first = client.submit_scenario("rlv-max-terminal-velocity")
     assert client.wait(first["id"], timeout_s=120)["status"] == "succeeded"

@@ -12,7 +12,15 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from app.batch_plan import PointerError, batch_size, expand, get_at, set_at
+from app.batch_plan import (
+    PointerError,
+    batch_size,
+    expand,
+    get_at,
+    nearest,
+    parameter_distance,
+    set_at,
+)
 from app.report.batch import ROW_COLUMNS, render_summary_plot, summary_csv, summary_row
 from app.schemas.batch import BatchRequest
 
@@ -198,3 +206,19 @@ def test_summary_rows_and_csv_read_the_results() -> None:
     ):
         png = render_summary_plot(kind, rows, paths, "png")
         assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_nearest_sibling_is_nearest_in_relative_terms_with_the_same_other_parameters() -> None:
+    me = {"/r": 2.0, "/q": 1.5e6, "/objective": "max_final_latitude"}
+    assert parameter_distance(me, me) == 0.0
+    assert parameter_distance(me, {**me, "/objective": "min_final_latitude"}) == float("inf")
+    # 2 -> 2.5 is a 20 % change, 1.5e6 -> 1.6e6 a 6.25 % one
+    assert parameter_distance(me, {**me, "/r": 2.5}) == pytest.approx(0.2)
+    candidates = [
+        ("radius", {**me, "/r": 2.5}),
+        ("heat", {**me, "/q": 1.6e6}),
+        ("other edge", {**me, "/objective": "min_final_latitude"}),
+    ]
+    assert nearest(me, candidates) == "heat"
+    assert nearest(me, candidates[2:]) is None  # nothing comparable: start cold
+    assert nearest({"/method": {"name": "a"}}, [("b", {"/method": {"name": "b"}})]) is None
