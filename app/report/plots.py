@@ -171,29 +171,35 @@ def _states(fig: Figure, result: Result) -> None:
 
 def _controls(fig: Figure, result: Result) -> None:
     limits = (result.get("verification") or {}).get("control_limits") or {}
-    nodes = _columns(result, "trajectory")
+    nodes, flown = _columns(result, "trajectory"), _columns(result, "propagated")
     show_alpha = "alpha_deg" in nodes and np.ptp(np.nan_to_num(nodes["alpha_deg"])) > 0.0
-    axes = fig.subplots(2 if show_alpha else 1, 1, sharex=True, squeeze=False)[:, 0]
-    bank = axes[0]
+    show_rate = "bank_deg" in flown and flown["bank_deg"].size > 2
+    panels = 1 + int(show_rate) + int(show_alpha)
+    axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])
+    bank = axes.pop(0)
     _overlay(bank, result, "time_s", "bank_deg")
     high = (limits.get("bank_deg") or {}).get("limit")
     low = (limits.get("bank_min_deg") or {}).get("limit")
-    _limit(bank, high, "bank limits")
+    _limit(bank, high, "limits")
     _limit(bank, low if low is not None else (-high if high is not None else None), "_")
     bank.set_ylabel("bank (deg)")
-    rate = limits.get("bank_rate_deg_s")
-    title = "Controls against time"
-    if rate:
-        title += f" (largest flown bank rate {rate['max']:.3g} of {rate['limit']:.3g} deg/s)"
+    bank.legend(loc="best", fontsize="small")
+    if show_rate:  # the flown bank's slope between the propagation's samples
+        rate_ax = axes.pop(0)
+        rate = np.gradient(flown["bank_deg"], flown["time_s"])
+        rate_ax.plot(flown["time_s"], rate, label="propagated", **FLOWN_STYLE)
+        limit = (limits.get("bank_rate_deg_s") or {}).get("limit")
+        _limit(rate_ax, limit, "limits")
+        _limit(rate_ax, -limit if limit is not None else None, "_")
+        rate_ax.set_ylabel("bank rate (deg/s)")
     if show_alpha:
-        alpha = axes[1]
+        alpha = axes.pop(0)
         _overlay(alpha, result, "time_s", "alpha_deg")
         for key in ("alpha_max_deg", "alpha_min_deg"):
             _limit(alpha, (limits.get(key) or {}).get("limit"), "_")
         alpha.set_ylabel("angle of attack (deg)")
-    axes[-1].set_xlabel("time (s)")
-    bank.legend(loc="best", fontsize="small")
-    fig.suptitle(title)
+    fig.axes[-1].set_xlabel("time (s)")
+    fig.suptitle("Controls against time")
 
 
 def _path_plot(name: str) -> Callable[[Figure, Result], None]:
