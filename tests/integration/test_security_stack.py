@@ -97,3 +97,18 @@ def test_the_rate_limit_is_shared_by_api_processes(two_apis: tuple[ApiServer, Ap
     finally:
         one.close()
         two.close()
+
+
+def test_the_python_client_sends_its_api_key(
+    api: ApiServer, stack_env: dict[str, str], scenario: str
+) -> None:
+    from app.client import AuthenticationError, TrajoptClient
+
+    key = create_api_key(stack_env, "client-lib")
+    with TrajoptClient(api.base_url, key) as client:
+        job = client.submit_scenario(scenario, method={"nodes": 41, "max_iterations": 2})
+        assert client.wait(job["id"], timeout_s=120)["status"] in ("failed", "succeeded")
+        assert [j["id"] for j in client.jobs()] == [job["id"]]
+    with TrajoptClient(api.base_url) as keyless, pytest.raises(AuthenticationError) as refused:
+        keyless.job(job["id"])
+    assert refused.value.code == "missing_api_key"
