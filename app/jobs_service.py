@@ -18,7 +18,7 @@ from app.dispatch.fair import priority_of_rank
 from app.errors import ApiError, not_found
 from app.ratelimit import Quota, Submitter
 from app.schemas import FieldIssue
-from app.schemas.guess import GUESS_COLUMNS
+from app.schemas.guess import guess_columns
 from app.settings import Settings
 from app.storage import quota as quota_store
 from app.storage import repository
@@ -276,9 +276,8 @@ def resolve_initial_guess(database: Database, owner: str, submission: Submission
     if found is None:
         raise ApiError(404, "job_not_found", f"no job {guess.from_job!r}", field=field)
     result = json.loads(found.result_json) if found.result_json is not None else {}
-    trajectory = result.get("trajectory") or {}
-    columns = {name: trajectory.get(name) for name in GUESS_COLUMNS}
-    if any(not isinstance(v, list) or None in v for v in columns.values()):
+    columns = guess_columns(result.get("trajectory") or {})
+    if columns is None:
         issue = FieldIssue(
             field=field,
             message=f"job {guess.from_job} ({found.status}) has no complete trajectory to "

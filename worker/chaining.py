@@ -7,7 +7,7 @@ import logging
 from typing import Any
 
 from app.batch_plan import nearest
-from app.schemas.guess import GUESS_COLUMNS
+from app.schemas.guess import guess_columns
 from app.storage import repository
 from app.storage.session import Database
 
@@ -29,8 +29,8 @@ def with_sibling_guess(
         trajectory = repository.job_trajectory(session, sibling) if sibling else None
     if trajectory is None:
         return problem
-    columns = {name: trajectory.get(name) for name in GUESS_COLUMNS}
-    if any(not isinstance(v, list) or None in v for v in columns.values()):
+    columns = guess_columns(trajectory)
+    if columns is None:
         return problem
     log.info("batch %s: starting from sibling %s", batch_id, sibling)
     return {**problem, "initial_guess": {"from_job": sibling, "trajectory": columns}}

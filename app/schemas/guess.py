@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Self
+from typing import Any, Self
 
 from pydantic import Field, model_validator
 
@@ -22,6 +22,8 @@ GUESS_COLUMNS = (
     "bank_deg",
 )
 """The columns of a guess trajectory (those of a result's trajectory that a start needs)."""
+OPTIONAL_GUESS_COLUMNS = ("alpha_deg",)
+"""Columns a guess may have (an optimized angle of attack starts from it)."""
 
 
 def _column(description: str) -> list[float]:
@@ -44,13 +46,20 @@ class GuessTrajectory(StrictModel):
     flight_path_angle_deg: list[float] = _column("Flight-path angle, deg.")
     heading_deg: list[float] = _column("Heading, deg.")
     bank_deg: list[float] = _column("Bank angle, deg.")
+    alpha_deg: list[float] | None = Field(
+        None,
+        min_length=2,
+        max_length=MAX_GUESS_POINTS,
+        description="Angle of attack, deg (optional: a method that optimizes it starts from "
+        "it, else from its own initial value).",
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> Self:
         problems: list[FieldProblem] = []
         count = len(self.time_s)
-        for name in GUESS_COLUMNS[1:]:
-            if len(getattr(self, name)) != count:
+        for name in (*GUESS_COLUMNS[1:], *OPTIONAL_GUESS_COLUMNS):
+            if getattr(self, name) is not None and len(getattr(self, name)) != count:
                 problems.append(
                     FieldProblem(
                         (name,),
@@ -92,3 +101,19 @@ class InitialGuess(StrictModel):
                 [FieldProblem((), "missing", "give from_job or trajectory")],
             )
         return self
+
+
+def guess_columns(trajectory: dict[str, Any]) -> dict[str, list[float]] | None:
+    """The columns of a result's trajectory a guess takes (the optional ones when complete);
+    None when a needed one is missing or holds a null (a non-finite value)."""
+
+    def complete(values: Any) -> bool:
+        return isinstance(values, list) and None not in values
+
+    columns = {name: trajectory.get(name) for name in GUESS_COLUMNS}
+    if not all(complete(v) for v in columns.values()):
+        return None
+    for name in OPTIONAL_GUESS_COLUMNS:
+        if complete(trajectory.get(name)):
+            columns[name] = trajectory[name]
+    return columns  # type: ignore[return-value]

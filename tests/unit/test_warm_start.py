@@ -114,3 +114,24 @@ def test_a_neighbours_answer_saves_iterations_and_reaches_the_same_optimum(
     assert warm["timing"]["iterations"] <= 0.75 * cold["timing"]["iterations"]
     # the same optimum to 0.1 %: two local solutions of one problem (measured 0.04 / 0.05 %)
     assert warm["objective"]["value"] == pytest.approx(cold["objective"]["value"], rel=1e-3)
+
+
+def test_hp_scp_starts_from_a_guess_over_its_own_flight_time() -> None:
+    from worker.solver.methods.hp_scp.method import HpScp
+
+    document = copy.deepcopy(get_scenario("rlv-min-time-hp").problem)
+    guess = _columns(4)
+    guess["time_s"] = [0.0, 400.0, 900.0, 1330.0]
+    guess["altitude_m"] = [80e3, 60e3, 40e3, 25e3]
+    guess["bank_deg"] = [10.0, 50.0, 95.0, 20.0]  # beyond the bank range at one point
+    guess["alpha_deg"] = [30.0, 45.0, 20.0, 10.0]  # beyond the alpha range at one point
+    document["initial_guess"] = {"trajectory": guess}
+    problem = build_problem(ProblemDocument.model_validate(document))
+    method = HpScp(problem, ProblemDocument.model_validate(document).method)  # type: ignore[arg-type]
+    reference = method.start()
+    assert reference.tf * problem.scales.time_s == pytest.approx(1330.0)
+    np.testing.assert_array_equal(reference.z[0, :6], problem.y0)
+    assert problem.alpha_range is not None
+    assert reference.z[:, 7].min() >= problem.alpha_range[0]
+    assert reference.z[:, 7].max() <= problem.alpha_range[1]
+    assert reference.z[:, 6].max() <= problem.bank_max

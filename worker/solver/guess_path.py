@@ -18,6 +18,8 @@ class GuessPath:
     t: Array
     y: Array
     bank: Array
+    alpha: Array | None = None
+    """Angle of attack (K,), radians, when the guess gives one."""
 
     def on_times(self, t_nodes: Array) -> tuple[Array, Array]:
         """States (N, 6) and bank (N,) at ``t_nodes`` (from 0), the guess's time scaled to
@@ -25,6 +27,13 @@ class GuessPath:
         scaled = self.t * (float(t_nodes[-1]) / float(self.t[-1]))
         y = np.column_stack([np.interp(t_nodes, scaled, self.y[:, j]) for j in range(6)])
         return y, np.interp(t_nodes, scaled, self.bank)
+
+    def alpha_on_times(self, t_nodes: Array) -> Array | None:
+        """The guess's angle of attack at ``t_nodes`` (scaled as :meth:`on_times`), or None."""
+        if self.alpha is None:
+            return None
+        scaled = self.t * (float(t_nodes[-1]) / float(self.t[-1]))
+        return np.interp(t_nodes, scaled, self.alpha)
 
     def energy(self) -> Array:
         """Energy e = 1/r - V^2/2 at each point (paper 000 eq. 7), made non-decreasing (a

@@ -258,7 +258,10 @@ def _guess(doc: ProblemDocument, scales: Scales) -> GuessPath | None:
             np.radians(given.heading_deg),
         ]
     )
-    return GuessPath(t=(t - t[0]) / scales.time_s, y=y, bank=np.radians(given.bank_deg))
+    alpha = np.radians(given.alpha_deg) if given.alpha_deg is not None else None
+    return GuessPath(
+        t=(t - t[0]) / scales.time_s, y=y, bank=np.radians(given.bank_deg), alpha=alpha
+    )
 
 
 def _optimized_alpha(doc: ProblemDocument, scales: Scales) -> dict[str, Any]:

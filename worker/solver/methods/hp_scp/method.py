@@ -186,6 +186,8 @@ class HpScp:
         """Constant bank and angle of attack flown from the initial state to the terminal
         altitude (or the guessed flight time), sampled at the mesh points."""
         p, o = self.problem, self.options
+        if p.guess is not None:
+            return self._start_from_guess()
         if p.initial_bank is not None:
             bank = p.initial_bank
         elif o.initial_bank_deg is not None:
@@ -262,6 +264,33 @@ class HpScp:
             "alpha_deg": math.degrees(alpha),
             "final_time_s": tf * p.scales.time_s,
         }
+        self.tf_guess = tf
+        self.objective = self._objective()
+        return HpIterate(z, np.zeros((z.shape[0], 2)), tf, self.pattern)
+
+    def _start_from_guess(self) -> HpIterate:
+        """The caller's trajectory on the mesh over its own flight time (the final time is
+        free): states and bank interpolated, the angle of attack from the guess (else the
+        method's initial value), each within its bounds, the initial state at the first point."""
+        p, o = self.problem, self.options
+        assert p.guess is not None
+        tf = float(p.guess.t[-1])
+        t = self.mesh.points(0.0, tf)
+        y, bank = p.guess.on_times(t)
+        y[0] = p.y0
+        alpha = p.guess.alpha_on_times(t)
+        if alpha is None:
+            start = p.initial_alpha if p.initial_alpha is not None else o.initial_alpha_deg
+            alpha = np.full(t.size, start if p.initial_alpha is not None else math.radians(start))
+        if p.initial_bank is not None:
+            bank[0] = p.initial_bank
+        if p.initial_alpha is not None:
+            alpha[0] = p.initial_alpha
+        bank = np.clip(bank, p.bank_min, p.bank_max)
+        if p.alpha_range is not None:
+            alpha = np.clip(alpha, *p.alpha_range)
+        z = np.column_stack([y, bank, alpha])
+        self.extra["initial_guess"] = {"final_time_s": tf * p.scales.time_s}
         self.tf_guess = tf
         self.objective = self._objective()
         return HpIterate(z, np.zeros((z.shape[0], 2)), tf, self.pattern)

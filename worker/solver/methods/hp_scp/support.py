@@ -39,13 +39,7 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         )
     if doc.waypoints:
         out.append(issue("waypoints", f"{NAME} does not handle waypoints yet"))
-    if doc.initial_guess is not None:
-        out.append(
-            issue(
-                "initial_guess",
-                f"{NAME} does not start from a given trajectory yet (energy-scp and foh-ptr do)",
-            )
-        )
+
     if doc.energy is not None:
         out.append(
             issue("energy", f"{NAME} works in time and ignores energy bounds; leave energy out")
