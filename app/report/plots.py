@@ -33,6 +33,7 @@ DPI = 100
 """A plot is 800 x 500 pixels as PNG."""
 
 ZONE_COLOR = "#d62728"
+WAYPOINT_COLOR = "#2ca02c"
 NODE_STYLE: dict[str, Any] = {"marker": "o", "markersize": 3.5, "linestyle": "none"}
 FLOWN_STYLE: dict[str, Any] = {"linewidth": 1.3, "color": "#1f77b4"}
 LIMIT_STYLE: dict[str, Any] = {"linestyle": "--", "color": ZONE_COLOR, "linewidth": 1.0}
@@ -140,6 +141,12 @@ def _ground_track(fig: Figure, result: Result) -> None:
             top = (zone["longitude_deg"], zone["latitude_deg"] + zone["radius_deg"])
             ax.annotate(zone["name"], top, ha="center", va="bottom", fontsize="small")
         drawn = True
+    for number, point in enumerate((result.get("verification") or {}).get("waypoints") or []):
+        lon, lat = zone_outline(point)
+        label = None if number else "waypoint"
+        ax.plot(lon, lat, color=WAYPOINT_COLOR, linewidth=1.4, linestyle="--", label=label)
+        top = (point["longitude_deg"], point["latitude_deg"] + point["radius_deg"])
+        ax.annotate(f"{point['order']}", top, ha="center", va="bottom", color=WAYPOINT_COLOR)
     _overlay(ax, result, "longitude_deg", "latitude_deg")
     nodes = _columns(result, "trajectory")
     if "latitude_deg" in nodes and nodes["latitude_deg"].size:
@@ -174,7 +181,9 @@ def _controls(fig: Figure, result: Result) -> None:
     nodes, flown = _columns(result, "trajectory"), _columns(result, "propagated")
     show_alpha = "alpha_deg" in nodes and np.ptp(np.nan_to_num(nodes["alpha_deg"])) > 0.0
     show_rate = "bank_deg" in flown and flown["bank_deg"].size > 2
-    panels = 1 + int(show_rate) + int(show_alpha)
+    alpha_rate = (limits.get("alpha_rate_deg_s") or {}).get("limit")
+    show_alpha_rate = show_alpha and alpha_rate is not None and "alpha_deg" in flown
+    panels = 1 + int(show_rate) + int(show_alpha) + int(show_alpha_rate)
     axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])
     bank = axes.pop(0)
     _overlay(bank, result, "time_s", "bank_deg")
@@ -182,7 +191,7 @@ def _controls(fig: Figure, result: Result) -> None:
     low = (limits.get("bank_min_deg") or {}).get("limit")
     _limit(bank, high, "limits")
     _limit(bank, low if low is not None else (-high if high is not None else None), "_")
-    bank.set_ylabel("bank (deg)")
+    bank.set_ylabel("bank\n(deg)")
     bank.legend(loc="best", fontsize="small")
     if show_rate:  # the flown bank's slope between the propagation's samples
         rate_ax = axes.pop(0)
@@ -191,13 +200,20 @@ def _controls(fig: Figure, result: Result) -> None:
         limit = (limits.get("bank_rate_deg_s") or {}).get("limit")
         _limit(rate_ax, limit, "limits")
         _limit(rate_ax, -limit if limit is not None else None, "_")
-        rate_ax.set_ylabel("bank rate (deg/s)")
+        rate_ax.set_ylabel("bank rate\n(deg/s)")
     if show_alpha:
         alpha = axes.pop(0)
         _overlay(alpha, result, "time_s", "alpha_deg")
         for key in ("alpha_max_deg", "alpha_min_deg"):
             _limit(alpha, (limits.get(key) or {}).get("limit"), "_")
-        alpha.set_ylabel("angle of attack (deg)")
+        alpha.set_ylabel("angle of\nattack (deg)")
+    if show_alpha_rate:
+        rate_ax = axes.pop(0)
+        rate = np.gradient(flown["alpha_deg"], flown["time_s"])
+        rate_ax.plot(flown["time_s"], rate, **FLOWN_STYLE)
+        _limit(rate_ax, alpha_rate, "_")
+        _limit(rate_ax, -alpha_rate if alpha_rate is not None else None, "_")
+        rate_ax.set_ylabel("alpha rate\n(deg/s)")
     fig.axes[-1].set_xlabel("time (s)")
     fig.suptitle("Controls against time")
 

@@ -335,6 +335,19 @@ class ZoneClearance(_Record):
     )
 
 
+class WaypointPass(_Record):
+    """The flown path's closest approach to one waypoint (after the previous one's)."""
+
+    order: int = Field(..., description="The waypoint's place in the visiting sequence.")
+    latitude_deg: Number = Field(..., description="Centre latitude, deg.")
+    longitude_deg: Number = Field(..., description="Centre longitude, deg.")
+    radius_deg: Number = Field(..., description="Radius, deg of arc.")
+    metric: str | None = Field(None, description="great_circle or lat_lon, as for zones.")
+    closest_deg: Number = Field(..., description="Closest approach to the centre, deg of arc.")
+    at_time_s: Number = Field(..., description="When, s.")
+    within: bool = Field(..., description="closest <= radius + no_fly_zone_deg.")
+
+
 class PropagatedPath(Trajectory):
     """The propagated flight on the verification's dense grid (about 20 samples between nodes,
     thinned to at most about 1 000 rows with every reported peak kept): the same columns and
@@ -371,6 +384,11 @@ class Verification(_Record):
     )
     heat_load_J_m2: Number = Field(
         None, description="Integrated heat rate of the propagation, J/m^2 (null: no heat model)."
+    )
+    waypoints: list[WaypointPass] = Field(
+        default_factory=list,
+        description="Only with waypoints: each one's closest approach on the flown path, in "
+        "order (the result is feasible only when every one is passed).",
     )
     propagated: PropagatedPath | None = Field(
         None,

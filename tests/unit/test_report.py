@@ -25,6 +25,7 @@ from app.report import available_plots, render_plot, trajectory_csv
 from app.report.files import plot_command, read_result
 from app.report.plots import DPI, FIGURE_SIZE_IN, UnknownPlotError, figure, zone_outline
 from app.report.table import NoTrajectoryError
+from worker.solver.scenarios import get_scenario
 from worker.solver.verification import MAX_PATH_SAMPLES, sample_rows
 
 
@@ -246,3 +247,47 @@ def test_the_propagated_flight_reaches_the_reported_peaks() -> None:
     a = np.sin((lat - lat0) / 2) ** 2 + np.cos(lat) * math.cos(lat0) * np.sin((lon - lon0) / 2) ** 2
     closest = math.degrees(float(np.min(2.0 * np.arcsin(np.sqrt(a))))) - zone["radius_deg"]
     assert closest == pytest.approx(zone["min_clearance_deg"], abs=0.05)
+
+
+@pytest.mark.slow
+def test_waypoints_are_checked_in_order_on_the_flown_path_and_drawn() -> None:
+    from app.schemas import ProblemDocument
+    from worker.solver.problem import build_problem
+    from worker.solver.trajectory import OptimizedTrajectory
+    from worker.solver.verification import verify
+
+    document = copy.deepcopy(get_scenario("rlv-max-terminal-velocity").problem)
+    problem = build_problem(ProblemDocument.model_validate(document))
+    assert problem.final_time is not None
+    t = np.linspace(0.0, problem.final_time, 41)
+    flight = OptimizedTrajectory("time", t, np.tile(problem.y0, (41, 1)), t, np.full(41, 0.3))
+    flown = verify(problem, flight)["propagated"]
+    assert "waypoints" not in verify(problem, flight)  # none asked: no entry
+    middle = len(flown["time_s"]) // 2
+    on_path = {"lat": flown["latitude_deg"][middle], "lon": flown["longitude_deg"][middle]}
+    document["waypoints"] = [
+        {
+            "latitude_deg": on_path["lat"],
+            "longitude_deg": on_path["lon"],
+            "radius_km": 20,
+            "order": 0,
+        },
+        # the start of the flight, but visited second: after the first it is far behind
+        {
+            "latitude_deg": flown["latitude_deg"][2],
+            "longitude_deg": flown["longitude_deg"][2],
+            "radius_km": 20,
+            "order": 1,
+        },
+    ]
+    report = verify(build_problem(ProblemDocument.model_validate(document)), flight)
+    first, second = report["waypoints"]
+    assert first["within"] and first["closest_deg"] < 1e-2  # a sample of the path itself
+    assert first["at_time_s"] == pytest.approx(flown["time_s"][middle], abs=1e-6)
+    assert not second["within"] and second["closest_deg"] > 5.0
+    assert report["feasible"] is False
+    result = {
+        **_result(),
+        "verification": {**_result()["verification"], "waypoints": report["waypoints"]},
+    }
+    assert _png_size(render_plot(result, "ground-track", "png")) == (800, 500)

@@ -408,12 +408,15 @@ def verify(
         )
 
     controls, controls_ok = _control_peaks(problem, traj, t_fine, s_fine, tol)
+    waypoints, waypoints_ok = _waypoint_passes(problem, t_fine, y_fine, tol)
 
     heat_load = None
     if problem.heat_model is not None:
         q_nodes = pv.heat_rate
         heat_load = float(np.trapezoid(q_nodes, t_fine) * sc.time_s)
-    feasible = bool(reached_end and hard_ok and path_ok and zones_ok and controls_ok)
+    feasible = bool(
+        reached_end and hard_ok and path_ok and zones_ok and controls_ok and waypoints_ok
+    )
     return {
         "feasible": feasible,
         "reached_end": bool(reached_end),
@@ -428,7 +431,40 @@ def verify(
         "control_limits": controls,
         "heat_load_J_m2": heat_load,
         "propagated": propagated_columns(problem, traj, t_fine, s_fine, y_fine, ft.alpha_deg, pv),
+        **({"waypoints": waypoints} if waypoints else {}),
     }
+
+
+def _waypoint_passes(
+    problem: EntryProblem, t_fine: Array, y_fine: Array, tol: VerificationTolerances
+) -> tuple[list[dict[str, Any]], bool]:
+    """Each waypoint's closest approach on the dense flown path, in order: it is passed when
+    the path comes within its radius (with the zones' margin), after the previous waypoint's
+    closest approach."""
+    sc = problem.scales
+    passes: list[dict[str, Any]] = []
+    ok = True
+    after = 0
+    for point in problem.waypoints:
+        distance = zone_distance(y_fine[after:, 2], y_fine[after:, 1], point).c
+        at = after + int(np.argmin(distance))
+        closest = math.degrees(float(distance[at - after]))
+        passed = closest <= math.degrees(point.radius) + tol.no_fly_zone_deg
+        ok &= passed
+        passes.append(
+            {
+                "order": point.order,
+                "latitude_deg": math.degrees(point.latitude),
+                "longitude_deg": math.degrees(point.longitude),
+                "radius_deg": math.degrees(point.radius),
+                "metric": point.metric,
+                "closest_deg": closest,
+                "at_time_s": float(t_fine[at] * sc.time_s + problem.t0),
+                "within": passed,
+            }
+        )
+        after = at
+    return passes, ok
 
 
 def sample_rows(count: int, peaks: list[Array], limit: int = MAX_PATH_SAMPLES) -> Array:
