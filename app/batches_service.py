@@ -370,7 +370,8 @@ def summary_plot(database: Database, owner: str, batch_id: str, fmt: str) -> byt
     tracks: list[tuple[list[float], list[float]]] = []
     if table.batch.kind == "footprint":
         with database.reader() as session:
-            for child in repository.batch_children(session, batch_id, owner):
+            children = repository.batch_children(session, batch_id, owner, repository.TRACK_PARTS)
+            for child in children:
                 flown = ((child.result or {}).get("verification") or {}).get("propagated") or {}
                 if child.status == "succeeded" and flown.get("longitude_deg"):
                     tracks.append((flown["longitude_deg"], flown["latitude_deg"]))

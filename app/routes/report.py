@@ -12,10 +12,14 @@ from app import jobs_service
 from app.deps import DatabaseDep, OwnerDep
 from app.errors import ApiError
 from app.report import PLOT_FORMATS, available_plots, render_plot, trajectory_csv
+from app.report.cache import RenderCache
 from app.report.table import NoTrajectoryError
 from app.views import ErrorResponse
 
 router = APIRouter(prefix="/v1/jobs", tags=["results"])
+
+PLOTS = RenderCache()
+"""This process's rendered plots of finished jobs (a finished result never changes)."""
 
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorResponse, "description": "No such job of yours (or no such plot)."},
@@ -94,7 +98,8 @@ def get_plot(job_id: str, name: str, fmt: str, database: DatabaseDep, owner: Own
             f"job {job_id} has no plot {name!r}; its plots: {', '.join(names) or 'none'}",
             field="name",
         )
-    return Response(render_plot(result, name, fmt), media_type=media_type)
+    image = PLOTS.get((job_id, name, fmt), lambda: render_plot(result, name, fmt))
+    return Response(image, media_type=media_type)
 
 
 def plot_media_type(fmt: str) -> str:

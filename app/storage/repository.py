@@ -972,11 +972,35 @@ class BatchChild:
     result: dict[str, Any] | None
 
 
+SUMMARY_PARTS: tuple[tuple[str, ...], ...] = (
+    ("objective",),
+    ("timing",),
+    ("failure",),
+    ("verification", "feasible"),
+    ("verification", "final_state"),
+    ("verification", "path_maxima"),
+    ("verification", "no_fly_zones"),
+)
+"""The parts of a child's result document a batch summary reads (not its trajectory, history
+or propagated flight, which make most of its size)."""
+
+TRACK_PARTS: tuple[tuple[str, ...], ...] = (
+    ("verification", "propagated", "longitude_deg"),
+    ("verification", "propagated", "latitude_deg"),
+)
+"""The parts of a child's result a footprint's plot reads: its flown ground track."""
+
+
 def batch_children(
-    session: Session, batch_id: str, owner: str, chunk: int = 20
+    session: Session,
+    batch_id: str,
+    owner: str,
+    parts: Sequence[tuple[str, ...]] = SUMMARY_PARTS,
+    chunk: int = 50,
 ) -> Iterator[BatchChild]:
-    """The batch's children in order, with their result documents, read ``chunk`` at a time
-    (one query each, so the reader's autocommit session needs no server-side cursor)."""
+    """The batch's children in order, each with the ``parts`` of its result document (a
+    document of those parts only; None without a result), read ``chunk`` at a time (one query
+    each: the reader's autocommit session has no server-side cursor)."""
     start = 0
     while True:
         stmt = (
@@ -987,7 +1011,8 @@ def batch_children(
                 Job.status,
                 Job.error_code,
                 Job.error_message,
-                Job.result,
+                Job.result.is_(None),
+                *(Job.result[path] for path in parts),
             )
             .where(
                 Job.batch_id == batch_id,
@@ -1002,15 +1027,28 @@ def batch_children(
             return
         for row in rows:
             yield BatchChild(
-                id=row.id,
-                index=int(row.batch_index or 0),
-                parameters=dict(row.batch_parameters or {}),
-                status=row.status,
-                error_code=row.error_code,
-                error_message=row.error_message,
-                result=row.result,
+                id=row[0],
+                index=int(row[1] or 0),
+                parameters=dict(row[2] or {}),
+                status=row[3],
+                error_code=row[4],
+                error_message=row[5],
+                result=None if row[6] else _nested(zip(parts, row[7:], strict=True)),
             )
         start += chunk
+
+
+def _nested(parts: Iterable[tuple[tuple[str, ...], Any]]) -> dict[str, Any]:
+    """A document holding each value at its path (absent values left out)."""
+    document: dict[str, Any] = {}
+    for path, value in parts:
+        if value is None:
+            continue
+        node = document
+        for key in path[:-1]:
+            node = node.setdefault(key, {})
+        node[path[-1]] = value
+    return document
 
 
 def chained_batch(session: Session, batch_id: str) -> bool:
