@@ -49,9 +49,10 @@ times below the tolerances it checks (500 m, 10 m/s, 0.1 deg; docs/methods/READM
 ATOL = 1e-12
 """Absolute tolerance of the propagation (nondimensional states)."""
 STOP_POLL_INTERVAL_S = 0.2
-MAX_PATH_SAMPLES = 1000
-"""About how many rows of the dense propagated flight a result keeps (``propagated``): enough
-for a smooth curve, few enough that a 400-node result stays well under a megabyte."""
+MAX_PATH_SAMPLES = 300
+"""About how many rows of the dense propagated flight a result keeps (``propagated``): a
+smooth curve on an 800-pixel plot, about 40 kB of a result document (its service overhead
+measured: 1 000 rows cost 7 ms a job, docs/service.md)."""
 """How often a propagation asks its stop check (wall seconds): a cancel or a time limit ends a
 long verification within about this long, without a database read per right-hand side."""
 
@@ -487,8 +488,9 @@ def propagated_columns(
     pv: Any,
 ) -> dict[str, Any]:
     """The propagated flight on the dense grid the checks read (thinned to at most about
-    :data:`MAX_PATH_SAMPLES` rows, peaks kept) as named columns in SI units and degrees, the
-    same names as the optimized trajectory's: what a plot overlays on the nodes."""
+    :data:`MAX_PATH_SAMPLES` rows, every path and bank peak and each zone's and waypoint's
+    closest approach kept) as named columns in SI units and degrees, the same names as the
+    optimized trajectory's: what a plot overlays on the nodes."""
     sc = problem.scales
     bank = np.degrees(bank_profile_at(traj, s_fine))
     alpha = np.broadcast_to(np.asarray(alpha_deg, dtype=float), t_fine.shape)
@@ -508,7 +510,10 @@ def propagated_columns(
     }
     present = {k: np.asarray(v, dtype=float) for k, v in columns.items() if v is not None}
     peaks = [present[k] for k in ("heat_rate_W_m2", "dynamic_pressure_Pa", "load_factor_g")]
-    rows = sample_rows(t_fine.size, [*(p for p in peaks if p.size), np.abs(bank)])
+    peaks.append(np.abs(bank))
+    for zone in (*problem.no_fly_zones, *problem.waypoints):  # each closest approach
+        peaks.append(-zone_distance(y_fine[:, 2], y_fine[:, 1], zone).c)
+    rows = sample_rows(t_fine.size, [p for p in peaks if p.size])
     out: dict[str, Any] = {k: v[rows].tolist() for k, v in present.items()}
     out["units"] = {k: COLUMN_UNITS[k] for k in present}
     out["samples"] = int(rows.size)
