@@ -12,7 +12,13 @@ from typing import Any
 import pytest
 
 from tests.e2e.browser import OFFLINE_FLAGS, chromium
-from tests.integration.harness import ApiServer, ServiceClient, long_job
+from tests.integration.harness import (
+    ApiServer,
+    ServiceClient,
+    create_api_key,
+    embedded_env,
+    long_job,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -145,3 +151,46 @@ def test_the_list_links_each_of_the_callers_jobs(
     error = finished["error"]
     assert page.inner_text("#failure").startswith(error["code"])
     watch.clean()
+
+
+@pytest.fixture(scope="module")
+def keyed_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ApiServer, str]]:
+    """An embedded server in api-keys mode and a key of client ``ui``."""
+    data = tmp_path_factory.mktemp("keyed")
+    env = embedded_env(
+        data,
+        TRAJOPT_AUTH_MODE="api-keys",
+        TRAJOPT_API_KEY_SECRET="ui-test-only-4c1d7e0b9a8f6e5d4c3b2a19",
+    )
+    key = create_api_key(env, "ui")
+    for server in ApiServer(env, data / "serve.log").serving():
+        yield server, key
+
+
+def test_in_api_keys_mode_the_page_asks_for_the_key_once_and_sends_it(
+    browser: Any, keyed_server: tuple[ApiServer, str]
+) -> None:
+    server, key = keyed_server
+    owner = ServiceClient(server.base_url, key)
+    try:
+        job = owner.submit({"scenario": ZONE_SCENARIO, "method": {"max_iterations": 1}})
+        owner.wait_finished(job["id"])
+    finally:
+        owner.close()
+    context = browser.new_context()
+    try:
+        watch = PageWatch(context.new_page(), server.base_url)
+        page = watch.page
+        page.goto(f"{server.base_url}/ui/")
+        page.wait_for_selector("#key-form:not([hidden]) #api-key")
+        assert "missing_api_key" in page.inner_text("#message")
+        page.fill("#api-key", key)
+        page.click("#key-form button")
+        page.wait_for_selector(f"#jobs a[href='jobs/{job['id']}']")
+        page.click(f"#jobs a[href='jobs/{job['id']}']")
+        page.wait_for_selector("#figures:not([hidden]) figure[data-plot='convergence'] img")
+        # the 401 of the first try is the one console error a browser logs for a refused fetch
+        watch.errors = [e for e in watch.errors if "401" not in e]
+        watch.clean()
+    finally:
+        context.close()
