@@ -290,3 +290,22 @@ def test_waypoints_are_checked_in_order_on_the_flown_path_and_drawn() -> None:
         "verification": {**_result()["verification"], "waypoints": report["waypoints"]},
     }
     assert _png_size(render_plot(result, "ground-track", "png")) == (800, 500)
+
+
+@pytest.mark.slow
+def test_every_reported_time_counts_from_the_problems_initial_time() -> None:
+    from app.schemas import ProblemDocument
+    from worker.solver.api import solve_problem
+
+    document = copy.deepcopy(get_scenario("rlv-max-terminal-velocity").problem)
+    document["initial_state"]["time_s"] = 500.0
+    document["final_time"]["value_s"] = 2100.0  # the same 1600 s flight, 500 s later
+    document["method"] = {"name": "foh-ptr", "max_iterations": 3, "bank_sign_starts": False}
+    result = solve_problem(ProblemDocument.model_validate(document))
+    verification = result["verification"]
+    times = verification["propagated"]["time_s"]
+    assert times[0] == 500.0 and result["trajectory"]["time_s"][0] == 500.0
+    peaks = [*verification["path_maxima"].values(), *verification["control_limits"].values()]
+    for peak in peaks:
+        assert times[0] <= peak["at_time_s"] <= times[-1]
+        assert peak["at_time_s"] in times  # the peak's own row of the flown path

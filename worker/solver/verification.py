@@ -379,7 +379,7 @@ def verify(
         peak = float(np.max(values))
         entry: dict[str, Any] = {
             "max": peak,
-            "at_time_s": float(t_fine[int(np.argmax(values))] * sc.time_s),
+            "at_time_s": float(t_fine[int(np.argmax(values))] * sc.time_s + problem.t0),
         }
         if limit is not None:
             entry["limit"] = limit
@@ -492,7 +492,8 @@ def propagated_columns(
     closest approach kept) as named columns in SI units and degrees, the same names as the
     optimized trajectory's: what a plot overlays on the nodes."""
     sc = problem.scales
-    bank = np.degrees(bank_profile_at(traj, s_fine))
+    bank_rad = bank_profile_at(traj, s_fine)
+    bank = np.degrees(bank_rad)
     alpha = np.broadcast_to(np.asarray(alpha_deg, dtype=float), t_fine.shape)
     columns: dict[str, Array | None] = {
         "time_s": t_fine * sc.time_s + problem.t0,
@@ -511,6 +512,8 @@ def propagated_columns(
     present = {k: np.asarray(v, dtype=float) for k, v in columns.items() if v is not None}
     peaks = [present[k] for k in ("heat_rate_W_m2", "dynamic_pressure_Pa", "load_factor_g")]
     peaks.append(np.abs(bank))
+    if problem.bank_rate_max is not None:  # the flown bank rate's peak (control_limits)
+        peaks.append(np.abs(bank_rate_at(traj, t_fine, bank_rad)))
     for zone in (*problem.no_fly_zones, *problem.waypoints):  # each closest approach
         peaks.append(-zone_distance(y_fine[:, 2], y_fine[:, 1], zone).c)
     rows = sample_rows(t_fine.size, [p for p in peaks if p.size])
@@ -558,7 +561,7 @@ def _control_peaks(
         ok &= within
         peaks[key] = {
             "max": float(values[at]),
-            "at_time_s": float(t_fine[at] * sc.time_s),
+            "at_time_s": float(t_fine[at] * sc.time_s + problem.t0),
             "limit": limit,
             "ratio": ratio,
             "within": within,
