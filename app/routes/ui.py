@@ -65,6 +65,13 @@ def job_page(job_id: str) -> Response:
     return _page("job.html")
 
 
+@router.get("/batches/{batch_id}")
+def batch_page(batch_id: str) -> Response:
+    """One batch: status and counts (refreshed while it runs), a row per child linked to its
+    job's page, its plot and summary downloads."""
+    return _page("batch.html")
+
+
 @router.get("/static/{name}")
 def asset(name: str) -> Response:
     """The pages' script and style sheet."""

@@ -166,6 +166,101 @@ async function jobsPage() {
   }
   more.addEventListener("click", () => load().catch(reportError));
   await load();
+  await batchList();
+}
+
+function countsText(counts) {
+  return Object.entries(counts)
+    .map(([status, count]) => `${count} ${status}`)
+    .join(", ");
+}
+
+async function batchList() {
+  const body = document.querySelector("#batches tbody");
+  const page = await getJson("/v1/batches?limit=50");
+  for (const batch of page.items) {
+    const row = el("tr");
+    const cell = el("td");
+    cell.append(el("a", batch.id, { href: `batches/${encodeURIComponent(batch.id)}` }));
+    row.append(cell, el("td", batch.name || "–"), el("td", batch.kind));
+    row.append(el("td", batch.status, { class: "status-" + batch.status }));
+    row.append(el("td", countsText(batch.counts)), el("td", batch.created_at));
+    body.append(row);
+  }
+}
+
+// --- one batch ---------------------------------------------------------------------------
+
+const BATCH_COLUMNS = [
+  ["status", "status"],
+  ["failure_code", "failure"],
+  ["objective", "objective"],
+  ["final_latitude_deg", "final lat (deg)"],
+  ["final_longitude_deg", "final lon (deg)"],
+  ["heat_rate_ratio", "heat / limit"],
+  ["load_factor_ratio", "load / limit"],
+  ["iterations", "iterations"],
+  ["optimization_s", "optimization s"],
+];
+
+function showChildren(summary) {
+  const head = document.querySelector("#children thead tr");
+  head.replaceChildren(el("th", "child"));
+  for (const path of summary.parameters) {
+    head.append(el("th", path));
+  }
+  for (const [, label] of BATCH_COLUMNS) {
+    head.append(el("th", label));
+  }
+  const body = document.querySelector("#children tbody");
+  body.replaceChildren();
+  for (const row of summary.rows) {
+    const tr = el("tr");
+    const cell = el("td");
+    cell.append(el("a", row.index, { href: `../jobs/${encodeURIComponent(row.job_id)}` }));
+    tr.append(cell);
+    for (const path of summary.parameters) {
+      const value = row.parameters[path];
+      tr.append(el("td", typeof value === "object" && value !== null ? JSON.stringify(value) : fmt(value)));
+    }
+    for (const [key] of BATCH_COLUMNS) {
+      tr.append(el("td", fmt(row[key]), key === "status" ? { class: "status-" + row.status } : {}));
+    }
+    body.append(tr);
+  }
+}
+
+async function batchPage() {
+  const batchId = decodeURIComponent(location.pathname.split("/").filter(Boolean).pop());
+  document.getElementById("batch-id").textContent = batchId;
+  document.title = `trajopt - batch ${batchId}`;
+  const base = `/v1/batches/${encodeURIComponent(batchId)}`;
+  for (;;) {
+    const summary = await getJson(`${base}/summary`);
+    const batch = summary.batch;
+    document.getElementById("name").textContent = batch.name || "–";
+    document.getElementById("kind").textContent = batch.kind;
+    document.getElementById("status").textContent = batch.status;
+    document.getElementById("status").className = "status-" + batch.status;
+    document.getElementById("counts").textContent = `${batch.size}: ${countsText(batch.counts)}`;
+    showChildren(summary);
+    if (batch.status !== "running") {
+      break;
+    }
+    say("running: refreshed every 2 s");
+    await new Promise((resolve) => setTimeout(resolve, 2000));
+  }
+  document.getElementById("links").replaceChildren(
+    downloadLink("summary CSV", `${base}/summary.csv`, `${batchId}-summary.csv`),
+    " · ",
+    downloadLink("summary JSON", `${base}/summary`, `${batchId}-summary.json`),
+  );
+  const blob = await (await api(`${base}/plot.png`)).blob();
+  const figure = el("figure", null, { "data-plot": "batch" });
+  figure.append(el("img", null, { alt: "batch plot", src: URL.createObjectURL(blob), width: "800", height: "500" }));
+  document.getElementById("plots").replaceChildren(figure);
+  document.getElementById("figures").hidden = false;
+  say("finished");
 }
 
 // --- one job -----------------------------------------------------------------------------
@@ -425,7 +520,7 @@ async function jobPage() {
 }
 
 document.addEventListener("DOMContentLoaded", () => {
-  const page = document.body.dataset.page;
-  const run = page === "jobs" ? jobsPage : jobPage;
+  const pages = { jobs: jobsPage, job: jobPage, batch: batchPage };
+  const run = pages[document.body.dataset.page];
   run().catch(reportError);
 });

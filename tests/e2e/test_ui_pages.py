@@ -153,6 +153,34 @@ def test_the_list_links_each_of_the_callers_jobs(
     watch.clean()
 
 
+def test_a_batch_page_follows_its_children_and_shows_its_plot(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    body = {
+        "name": "zone radius",
+        "base": {"scenario": ZONE_SCENARIO, "method": {"nodes": 30}},
+        "grid": {"parameters": [{"path": "/no_fly_zones/0/radius_deg", "values": [1.0, 2.0, 3.0]}]},
+    }
+    answer = embedded_client.http.post("/v1/batches", json=body)
+    assert answer.status_code == 202, answer.text
+    batch = answer.json()
+    page = watch.page
+    page.goto(f"{embedded_server.base_url}/ui/batches/{batch['id']}")
+    page.wait_for_selector("#figures:not([hidden]) img", timeout=120_000)
+    page.wait_for_function("() => document.querySelector('#plots img').naturalWidth === 800")
+    assert page.inner_text("#status") == "finished"
+    assert page.eval_on_selector_all("#children tbody tr", "rs => rs.length") == 3
+    headers = page.eval_on_selector_all("#children th", "hs => hs.map(h => h.textContent)")
+    assert headers[:2] == ["child", "/no_fly_zones/0/radius_deg"]
+    first_job = embedded_client.http.get(f"/v1/batches/{batch['id']}/summary").json()["rows"][0]
+    page.click("#children tbody tr:first-child a")
+    page.wait_for_selector("#figures:not([hidden]) figure[data-plot='ground-track'] img")
+    assert first_job["job_id"] in page.url
+    page.goto(f"{embedded_server.base_url}/ui/")
+    page.wait_for_selector(f"#batches a[href='batches/{batch['id']}']")
+    watch.clean()
+
+
 @pytest.fixture(scope="module")
 def keyed_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ApiServer, str]]:
     """An embedded server in api-keys mode and a key of client ``ui``."""
