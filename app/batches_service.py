@@ -120,6 +120,8 @@ def plan_children(
     """The validated children of ``request`` as jobs to store (owner left empty); a 422
     naming every bad child (index, parameters, field) otherwise. ``resolve`` completes the
     base's initial guess (from_job) before the children copy it."""
+    from worker.solver.methods import check_support  # the solver's registry, loaded on use
+
     size = batch_size(request)
     field = {
         "grid": "grid",
@@ -159,8 +161,6 @@ def plan_children(
         except ApiError as exc:
             issues += _prefixed(_api_issues(exc), f"children[{child.index}]", note)
             continue
-        from worker.solver.methods import check_support
-
         problems = cap_issues(submission.problem, settings) + list(
             check_support(submission.problem)
         )

@@ -55,9 +55,8 @@ class UnknownPlotError(KeyError):
 def _columns(result: Result, key: str) -> dict[str, np.ndarray]:
     """The numeric columns of the trajectory (``key`` "trajectory") or the propagated flight
     (``key`` "propagated", inside the verification); empty when absent. Nulls become NaN."""
-    block = result.get(key) if key == "trajectory" else (result.get("verification") or {})
-    if key == "propagated":
-        block = block.get("propagated") if isinstance(block, Mapping) else None
+    owner = result if key == "trajectory" else result.get("verification")
+    block = owner.get(key) if isinstance(owner, Mapping) else None
     if not isinstance(block, Mapping):
         return {}
     return {

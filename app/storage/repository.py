@@ -968,7 +968,6 @@ class BatchChild:
     parameters: dict[str, Any]
     status: str
     error_code: str | None
-    error_message: str | None
     result: dict[str, Any] | None
 
 
@@ -1010,7 +1009,6 @@ def batch_children(
                 Job.batch_parameters,
                 Job.status,
                 Job.error_code,
-                Job.error_message,
                 Job.result.is_(None),
                 *(Job.result[path] for path in parts),
             )
@@ -1032,8 +1030,7 @@ def batch_children(
                 parameters=dict(row[2] or {}),
                 status=row[3],
                 error_code=row[4],
-                error_message=row[5],
-                result=None if row[6] else _nested(zip(parts, row[7:], strict=True)),
+                result=None if row[5] else _nested(zip(parts, row[6:], strict=True)),
             )
         start += chunk
 

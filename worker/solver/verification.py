@@ -408,7 +408,8 @@ def verify(
             }
         )
 
-    controls, controls_ok = _control_peaks(problem, traj, t_fine, s_fine, tol)
+    bank = bank_profile_at(traj, s_fine)  # the flown bank, read by the checks and the columns
+    controls, controls_ok = _control_peaks(problem, traj, t_fine, s_fine, tol, bank)
     waypoints, waypoints_ok = _waypoint_passes(problem, t_fine, y_fine, tol)
 
     heat_load = None
@@ -431,7 +432,7 @@ def verify(
         "no_fly_zones": zones,
         "control_limits": controls,
         "heat_load_J_m2": heat_load,
-        "propagated": propagated_columns(problem, traj, t_fine, s_fine, y_fine, ft.alpha_deg, pv),
+        "propagated": propagated_columns(problem, traj, t_fine, bank, y_fine, ft.alpha_deg, pv),
         **({"waypoints": waypoints} if waypoints else {}),
     }
 
@@ -482,7 +483,7 @@ def propagated_columns(
     problem: EntryProblem,
     traj: OptimizedTrajectory,
     t_fine: Array,
-    s_fine: Array,
+    bank_rad: Array,
     y_fine: Array,
     alpha_deg: Array,
     pv: Any,
@@ -492,7 +493,6 @@ def propagated_columns(
     closest approach kept) as named columns in SI units and degrees, the same names as the
     optimized trajectory's: what a plot overlays on the nodes."""
     sc = problem.scales
-    bank_rad = bank_profile_at(traj, s_fine)
     bank = np.degrees(bank_rad)
     alpha = np.broadcast_to(np.asarray(alpha_deg, dtype=float), t_fine.shape)
     columns: dict[str, Array | None] = {
@@ -529,6 +529,7 @@ def _control_peaks(
     t_fine: Array,
     s_fine: Array,
     tol: VerificationTolerances,
+    bank: Array | None = None,
 ) -> tuple[dict[str, Any], bool]:
     """The largest |bank| (and |bank rate|, when the problem limits it) of the flown control on
     the dense grid, against the problem's limits; and whether both hold. A method bounds its
@@ -538,7 +539,8 @@ def _control_peaks(
     and the smallest against the lower (``bank_min_deg``), each ratio the share of the range's
     half-width used from its middle (for a symmetric range, |bank| / limit)."""
     sc = problem.scales
-    bank = bank_profile_at(traj, s_fine)
+    if bank is None:  # the flown bank on the grid, unless the caller has it already
+        bank = bank_profile_at(traj, s_fine)
     low, high = math.degrees(problem.bank_min), math.degrees(problem.bank_max)
     checks: list[tuple[str, Array, float, float]] = []
     if low == -high:
