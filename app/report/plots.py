@@ -178,7 +178,8 @@ def _states(fig: Figure, result: Result) -> None:
 def _controls(fig: Figure, result: Result) -> None:
     limits = (result.get("verification") or {}).get("control_limits") or {}
     nodes, flown = _columns(result, "trajectory"), _columns(result, "propagated")
-    show_alpha = "alpha_deg" in nodes and np.ptp(np.nan_to_num(nodes["alpha_deg"])) > 0.0
+    lift = "normalized_lift" if "normalized_lift" in nodes else "alpha_deg"
+    show_alpha = lift in nodes and np.ptp(np.nan_to_num(nodes[lift])) > 0.0
     show_rate = "bank_deg" in flown and flown["bank_deg"].size > 2
     alpha_rate = (limits.get("alpha_rate_deg_s") or {}).get("limit")
     show_alpha_rate = show_alpha and alpha_rate is not None and "alpha_deg" in flown
@@ -202,10 +203,11 @@ def _controls(fig: Figure, result: Result) -> None:
         rate_ax.set_ylabel("bank rate\n(deg/s)")
     if show_alpha:
         alpha = axes.pop(0)
-        _overlay(alpha, result, "time_s", "alpha_deg")
+        _overlay(alpha, result, "time_s", lift)
         for key in ("alpha_max_deg", "alpha_min_deg"):
             _limit(alpha, (limits.get(key) or {}).get("limit"), "_")
-        alpha.set_ylabel("angle of\nattack (deg)")
+        label = "normalized\nlift (1)" if lift == "normalized_lift" else "angle of\nattack (deg)"
+        alpha.set_ylabel(label)
     if show_alpha_rate:
         rate_ax = axes.pop(0)
         rate = np.gradient(flown["alpha_deg"], flown["time_s"])

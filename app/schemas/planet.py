@@ -79,6 +79,15 @@ class Planet(StrictModel):
         description="Gravitational parameter mu, m^3/s^2; then g0 = mu / R0^2, which must lie "
         f"in [{bounds.SURFACE_GRAVITY_M_S2[0]:g}, {bounds.SURFACE_GRAVITY_M_S2[1]:g}] m/s^2.",
     )
+    model: Literal["spherical", "flat"] = Field(
+        "spherical",
+        description='Equations of motion: "spherical", the point-mass equations over the sphere '
+        '(every method); "flat", the flat-Earth small flight-path-angle model of paper 001 '
+        "eq. 1 (Jorris & Cobb): longitude and latitude are flat map coordinates in radians of "
+        "the planet's radius, no gravity in the speed equation, no rotation; distances to "
+        "no-fly zones (which must use the lat_lon metric) and waypoints are map distances. "
+        "Only cheb-scvx flies it.",
+    )
     rotation: bool = Field(False, description="Whether the planet's rotation enters the dynamics.")
     rotation_rate_rad_s: float = Field(
         7.292115e-5,
@@ -121,6 +130,22 @@ class Planet(StrictModel):
                         f"mu / R0^2 = {self.surface_gravity_m_s2:g} m/s^2 is outside "
                         f"[{low:g}, {high:g}] m/s^2",
                         self.mu_m3_s2,
+                    )
+                ],
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _flat_without_rotation(self) -> Planet:
+        if self.model == "flat" and self.rotation:
+            raise_problems(
+                "Planet",
+                [
+                    FieldProblem(
+                        ("rotation",),
+                        "not_applicable",
+                        "the flat-Earth model has no rotation; set rotation false",
+                        self.rotation,
                     )
                 ],
             )

@@ -131,6 +131,16 @@ class ProblemDocument(StrictModel):
         problems: list[FieldProblem] = []
         for i, zone in enumerate(self.no_fly_zones):
             label = f"no-fly zone {zone.name!r}" if zone.name else f"no-fly zone {i}"
+            if self.planet.model == "flat" and zone.metric != "lat_lon":
+                problems.append(
+                    FieldProblem(
+                        ("no_fly_zones", i, "metric"),
+                        "metric_of_model",
+                        f"{label}: on the flat-Earth planet model distances are map distances; "
+                        'give "metric": "lat_lon"',
+                        zone.metric,
+                    )
+                )
             if zone.contains_point(*start, radius):
                 problems.append(
                     FieldProblem(

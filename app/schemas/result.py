@@ -224,6 +224,11 @@ class Trajectory(BaseModel):
     heading_deg: list[Number] | None = Field(None, description="Heading, deg.")
     bank_deg: list[Number] | None = Field(None, description="Bank angle, deg.")
     alpha_deg: list[Number] | None = Field(None, description="Angle of attack, deg.")
+    normalized_lift: list[Number] | None = Field(
+        None,
+        description="Normalized lift lambda = CL / CL* of a parabolic-polar vehicle (1), in the "
+        "angle of attack's place.",
+    )
     heat_rate_W_m2: list[Number] | None = Field(None, description="Stagnation heat rate, W/m^2.")
     dynamic_pressure_Pa: list[Number] | None = Field(None, description="Dynamic pressure, Pa.")
     load_factor_g: list[Number] | None = Field(

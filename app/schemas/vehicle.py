@@ -174,6 +174,31 @@ class Vehicle(StrictModel):
         f"[{bounds.REFERENCE_AREA_M2[0]:g}, {bounds.REFERENCE_AREA_M2[1]:g}].",
     )
     aerodynamics: Aerodynamics = Field(..., description="Lift and drag coefficient model.")
-    angle_of_attack: AngleOfAttack = Field(
-        ..., description="Angle-of-attack law: schedule, table, constant or optimized."
+    angle_of_attack: AngleOfAttack | None = Field(
+        None,
+        description="Angle-of-attack law: schedule, table, constant or optimized. Required with "
+        "polynomial or tabulated aerodynamics; left out with a parabolic polar, whose lift is "
+        "set by the normalized lift lambda instead.",
     )
+
+    @model_validator(mode="after")
+    def _lift_control(self) -> Vehicle:
+        """A polar vehicle's lift control is lambda, every other model's the angle of attack."""
+        polar = self.aerodynamics.model == "parabolic_polar"
+        if polar and self.angle_of_attack is not None:
+            problem = FieldProblem(
+                ("angle_of_attack",),
+                "not_applicable",
+                "a parabolic polar has no angle of attack (its lift is set by the normalized "
+                "lift lambda within lambda_min..lambda_max); leave angle_of_attack out",
+            )
+            raise_problems("Vehicle", [problem])
+        if not polar and self.angle_of_attack is None:
+            problem = FieldProblem(
+                ("angle_of_attack",),
+                "missing",
+                f"{self.aerodynamics.model} aerodynamics need an angle-of-attack law "
+                "(velocity_schedule, table, constant or optimized)",
+            )
+            raise_problems("Vehicle", [problem])
+        return self

@@ -74,10 +74,13 @@ def test_parabolic_polar() -> None:
     clc, cdc, _, _ = model.polar(lam + 1j * STEP)
     np.testing.assert_allclose(dcl, clc.imag / STEP, rtol=CS_RTOL)
     np.testing.assert_allclose(dcd, cdc.imag / STEP, rtol=CS_RTOL)
-    c = model.coefficients(np.array([5.0, 30.0]), np.array([3.0, 20.0]))
-    np.testing.assert_allclose(c.cl, model.cl_star, rtol=EXACT_RTOL)
-    np.testing.assert_allclose(c.cd, 2 * cd0, rtol=EXACT_RTOL)  # cd0 + k cl*^2 = 2 cd0
-    assert np.all(c.dcl_dalpha == 0.0) and np.all(c.dcd_dmach == 0.0)
+    # the lift control lam takes the angle of attack's place; at lam = 1, cd0 + k cl*^2 = 2 cd0
+    c = model.coefficients(np.array([1.0, 0.5]), np.array([3.0, 20.0]))
+    np.testing.assert_allclose(c.cl, [model.cl_star, 0.5 * model.cl_star], rtol=EXACT_RTOL)
+    np.testing.assert_allclose(c.cd, [2 * cd0, 1.25 * cd0], rtol=EXACT_RTOL)
+    np.testing.assert_allclose(c.dcl_dalpha, model.cl_star, rtol=EXACT_RTOL)
+    np.testing.assert_allclose(c.dcd_dalpha, [2 * cd0 / 1.0, cd0], rtol=EXACT_RTOL)
+    assert np.all(c.dcd_dmach == 0.0)
     with pytest.raises(ValueError, match="cd0"):
         ParabolicPolarAero(cl_star=0.3, cd0=0.0, k_induced=1.0)
 

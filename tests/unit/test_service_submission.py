@@ -113,9 +113,13 @@ def test_same_model_merges_into_the_scenario_s_fields() -> None:
 
 def test_switching_the_aerodynamic_model_and_terminal_and_final_time_kinds() -> None:
     polar = {"model": "parabolic_polar", "cl_star": 0.6, "cd0": 0.05, "k_induced": 1.2}
-    document = _resolved({"vehicle": {"aerodynamics": polar}})
+    # a polar has no angle of attack: the override removes the scenario's law (merge-patch null)
+    document = _resolved({"vehicle": {"aerodynamics": polar, "angle_of_attack": None}})
     assert document["vehicle"]["aerodynamics"]["model"] == "parabolic_polar"
     assert "cl_coefficients" not in document["vehicle"]["aerodynamics"]
+    assert document["vehicle"].get("angle_of_attack") is None
+    with pytest.raises(ApiError, match=r"vehicle\.angle_of_attack: a parabolic polar"):
+        _resolved({"vehicle": {"aerodynamics": polar}})
     range_spec = {"kind": "range", "lo": 10, "hi": 20}
     document = _resolved({"terminal": {"latitude_deg": range_spec}})
     assert document["terminal"]["latitude_deg"] == range_spec

@@ -92,9 +92,10 @@ class PolynomialAero:
 class ParabolicPolarAero:
     """Parabolic polar with normalized lift lambda as control (paper 001): CL = lam*cl_star.
 
-    CD = cd0 + k_induced CL^2. ``coefficients`` has no angle of attack to use: it ignores alpha
-    and Mach and returns the lam = 1 point (CL = cl_star, the maximum-L/D lift coefficient
-    when cl_star^2 = cd0/k_induced) with zero partials; the solver controls lam via ``polar``.
+    CD = cd0 + k_induced CL^2. The vehicle has no angle of attack: its lift control is lam, and
+    ``coefficients`` takes lam in the place of the angle of attack (the forces, the verification
+    and the results pass the lift control of every vehicle through that one argument), with
+    the partials in lam in the ``*_dalpha`` fields; Mach is ignored.
     """
 
     cl_star: float
@@ -117,8 +118,10 @@ class ParabolicPolarAero:
         return cl, cd, dcl, 2.0 * self.k_induced * cl * self.cl_star
 
     def coefficients(self, alpha_deg: npt.ArrayLike, mach: npt.ArrayLike) -> AeroCoefficients:
-        """The lam = 1 coefficients broadcast to the inputs' shape; alpha and Mach are ignored."""
+        """CL, CD and their lam partials at normalized lift ``alpha_deg`` (lam, see the class);
+        Mach is ignored (zero partials)."""
         shape = np.broadcast_shapes(np.shape(alpha_deg), np.shape(mach))
-        cl, cd, _, _ = self.polar(np.ones(shape))
+        lam = np.broadcast_to(as_float_array(alpha_deg), shape)
+        cl, cd, dcl, dcd = self.polar(lam)
         zero = np.zeros(shape)
-        return AeroCoefficients(cl, cd, zero, zero.copy(), zero.copy(), zero.copy())
+        return AeroCoefficients(cl, cd, dcl, dcd, zero, zero.copy())

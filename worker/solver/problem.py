@@ -88,6 +88,12 @@ class EntryProblem:
     """Optimized angle of attack at the initial time (radians); None when free."""
     guess: GuessPath | None = None
     """The caller's initial guess (an earlier answer); None: the method's own guess."""
+    lift_range: tuple[float, float] | None = None
+    """A parabolic polar's normalized-lift range (lambda_min, lambda_max); None otherwise."""
+    planet_model: Literal["spherical", "flat"] = "spherical"
+    """The equations of motion: the spherical planet, or paper 001's flat-Earth model."""
+    final_time_max: float | None = None
+    """Latest final time of a free final time, nondimensional from the initial time."""
 
     def radius(self, altitude_m: float) -> float:
         """Nondimensional radius of an altitude in metres."""
@@ -134,7 +140,8 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
     g0 = planet.surface_gravity_m_s2
     scales = Scales(radius_m=planet.radius_m, g0_m_s2=g0)
     vehicle = doc.vehicle
-    schedule = alpha_schedule_from_spec(vehicle.angle_of_attack)
+    spec = vehicle.angle_of_attack
+    schedule = alpha_schedule_from_spec(spec) if spec is not None else None
     forces = VehicleForces(
         scales=scales,
         mass_kg=vehicle.mass_kg,
@@ -207,6 +214,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
             longitude=math.radians(w.longitude_deg),
             radius=_zone_radius_rad(w, planet.radius_m),
             order=w.order,
+            metric="lat_lon" if planet.model == "flat" else "great_circle",
         )
         for w in sorted(doc.waypoints, key=lambda w: w.order)
     ]
@@ -236,10 +244,25 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
         objective=[ObjectiveTerm(t.name, t.weight) for t in doc.objective.terms],
         no_fly_zones=zones,
         waypoints=waypoints,
-        alpha_optimized=schedule is None,
+        alpha_optimized=spec is not None and schedule is None,
         **_optimized_alpha(doc, scales),
         guess=_guess(doc, scales),
+        lift_range=_lift_range(doc),
+        planet_model=planet.model,
+        final_time_max=(
+            (doc.final_time.max_s - s0.time_s) / scales.time_s
+            if doc.final_time.kind == "free" and doc.final_time.max_s is not None
+            else None
+        ),
     )
+
+
+def _lift_range(doc: ProblemDocument) -> tuple[float, float] | None:
+    """A parabolic polar's (lambda_min, lambda_max), else None."""
+    aero = doc.vehicle.aerodynamics
+    if aero.model != "parabolic_polar":
+        return None
+    return float(aero.lambda_min), float(aero.lambda_max)
 
 
 def _guess(doc: ProblemDocument, scales: Scales) -> GuessPath | None:
@@ -269,7 +292,7 @@ def _optimized_alpha(doc: ProblemDocument, scales: Scales) -> dict[str, Any]:
     radians per nondimensional time); empty for a scheduled one. The rate bound is the
     angle-of-attack law's own, else ``control_limits.alpha_rate_max_deg_s``."""
     spec = doc.vehicle.angle_of_attack
-    if spec.mode != "optimized":
+    if spec is None or spec.mode != "optimized":
         return {}
     rate = spec.rate_max_deg_s
     if rate is None:

@@ -21,7 +21,7 @@ from worker.solver.scp.history import IterationRecord
 from worker.solver.scp.loop import VIRTUAL_CONTROL_TOL
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.units import COLUMN_UNITS
-from worker.solver.verification import VerificationTolerances
+from worker.solver.verification import VerificationTolerances, lift_control_column
 
 PACKAGES = ("numpy", "scipy", "clarabel", "cvxpy", "pydantic", "entry-trajopt")
 
@@ -41,7 +41,7 @@ def trajectory_columns(problem: EntryProblem, traj: OptimizedTrajectory) -> dict
         "flight_path_angle_deg": np.degrees(y[:, 4]).tolist(),
         "heading_deg": np.degrees(y[:, 5]).tolist(),
         "bank_deg": np.degrees(traj.bank).tolist(),
-        "alpha_deg": np.asarray(ft.alpha_deg, dtype=float).tolist(),
+        lift_control_column(problem): np.asarray(ft.alpha_deg, dtype=float).tolist(),
         "heat_rate_W_m2": pv.heat_rate.tolist() if problem.heat_model else None,
         "dynamic_pressure_Pa": pv.dynamic_pressure.tolist(),
         "load_factor_g": pv.load_factor.tolist(),

@@ -15,6 +15,7 @@ COLUMN_UNITS = {
     "heading_deg": "deg",
     "bank_deg": "deg",
     "alpha_deg": "deg",
+    "normalized_lift": "1",
     "heat_rate_W_m2": "W/m^2",
     "dynamic_pressure_Pa": "Pa",
     "load_factor_g": "g0",

@@ -26,6 +26,7 @@ from scipy.integrate import solve_ivp
 from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.models import flown_rates
 from worker.solver.models.bank_state_compiled import compiled_parameters, float_arrays
+from worker.solver.models.lift_vector import lift_controls, lift_vector_dynamics
 from worker.solver.models.point_mass import time_dynamics
 from worker.solver.models.scalar_rates import time_rates
 from worker.solver.path_limits import path_values
@@ -205,6 +206,17 @@ def _rhs(
             u[0, 0], u[0, 1] = math.cos(sigma[0]), math.sin(sigma[0])
             return time_dynamics(y[None, :], u, forces, omega, alpha, jacobians=False).f[0]
 
+        if problem.planet_model == "flat":  # paper 001 eq. 1, the normalized lift in alpha's place
+
+            def flown_flat(t: float, y: Array) -> Array:
+                poll()
+                at[0] = t
+                sigma, lam = attitude.at(at)
+                lift = lift_controls(lam, sigma)
+                return lift_vector_dynamics(y[None, :], lift, forces, 0.0, "flat",
+                                            jacobians=False).f[0]  # fmt: skip
+
+            return flown_flat
         return flown
 
     def python(t: float, y: Array) -> Array:
@@ -479,6 +491,12 @@ def sample_rows(count: int, peaks: list[Array], limit: int = MAX_PATH_SAMPLES) -
     return np.unique(np.concatenate(keep))
 
 
+def lift_control_column(problem: EntryProblem) -> str:
+    """The column of the lift control: the normalized lift of a parabolic polar (which takes
+    the angle of attack's place in the force models), else the angle of attack."""
+    return "normalized_lift" if problem.lift_range is not None else "alpha_deg"
+
+
 def propagated_columns(
     problem: EntryProblem,
     traj: OptimizedTrajectory,
@@ -504,7 +522,7 @@ def propagated_columns(
         "flight_path_angle_deg": np.degrees(y_fine[:, 4]),
         "heading_deg": np.degrees(y_fine[:, 5]),
         "bank_deg": bank,
-        "alpha_deg": alpha,
+        lift_control_column(problem): alpha,
         "heat_rate_W_m2": pv.heat_rate if problem.heat_model else None,
         "dynamic_pressure_Pa": pv.dynamic_pressure,
         "load_factor_g": pv.load_factor,

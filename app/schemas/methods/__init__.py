@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Final, Union
 from pydantic import BeforeValidator, Field
 
 from app.schemas.base import untagged_errors
+from app.schemas.methods.cheb_scvx import ChebScvxOptions, ChebStopTolerance, ChebTrustRegion
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 from app.schemas.methods.energy_scp import EnergyScpOptions, EnergyStopTolerance
 from app.schemas.methods.foh_ptr import FohPtrOptions, FohStopTolerance
@@ -23,6 +24,7 @@ METHOD_OPTION_TYPES: Final[tuple[type[ScpRunOptions], ...]] = (
     EnergyScpOptions,
     FohPtrOptions,
     HpScpOptions,
+    ChebScvxOptions,
 )
 """Every method's options model: the one place a method is registered."""
 
@@ -72,6 +74,9 @@ __all__ = [
     "METHOD_OPTIONS",
     "METHOD_OPTION_TYPES",
     "BoundedOptions",
+    "ChebScvxOptions",
+    "ChebStopTolerance",
+    "ChebTrustRegion",
     "EnergyScpOptions",
     "EnergyStopTolerance",
     "FohPtrOptions",

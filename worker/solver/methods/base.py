@@ -270,7 +270,8 @@ def issue(field: str, message: str, code: str = "unsupported_by_method") -> Fiel
 def scheduled_alpha_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
     """Refusals shared by methods that fly a scheduled angle of attack with CL(alpha), CD(alpha)."""
     out = []
-    if doc.vehicle.angle_of_attack.mode == "optimized":
+    attack = doc.vehicle.angle_of_attack
+    if attack is not None and attack.mode == "optimized":
         out.append(
             issue(
                 "vehicle.angle_of_attack",
@@ -294,6 +295,14 @@ def scheduled_alpha_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
             )
         )
     return out
+
+
+def spherical_only_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
+    """Refusal of paper 001's flat-Earth model by a method built on the spherical equations."""
+    if doc.planet.model == "spherical":
+        return []
+    return [issue("planet.model", f"{name} flies the spherical planet model; only cheb-scvx "
+                  "flies the flat-Earth model")]  # fmt: skip
 
 
 def objective_issues(

@@ -156,3 +156,7 @@ ENERGY = StateLayout(
 """Paper 000's energy-form state [r, theta, phi, gamma, psi] (energy is the independent
 variable). Trust units: 1e-3 in radius (6.4 km on Earth), 1 deg in the angles, 0.5 deg in the
 flight-path angle, which moves least."""
+
+POINT_MASS = StateLayout("point-mass", BANK_STATE.components[:6])
+"""The point-mass time-domain state [r, theta, phi, V, gamma, psi] alone, with the lift vector as
+the control (paper 001): the trust units of ``BANK_STATE``'s point-mass states."""

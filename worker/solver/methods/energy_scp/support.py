@@ -9,6 +9,7 @@ from worker.solver.methods.base import (
     issue,
     objective_issues,
     scheduled_alpha_issues,
+    spherical_only_issues,
 )
 
 NAME = "energy-scp"
@@ -51,6 +52,7 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         out.append(issue("no_fly_zones", f"{NAME} does not handle no-fly zones"))
     if doc.waypoints:
         out.append(issue("waypoints", f"{NAME} does not handle waypoints"))
+    out.extend(spherical_only_issues(doc, NAME))
     out.extend(objective_issues(doc, NAME, OBJECTIVES, "minimize"))
     out.extend(_energy_issues(doc))
     return out

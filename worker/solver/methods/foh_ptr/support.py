@@ -10,6 +10,7 @@ from worker.solver.methods.base import (
     issue,
     objective_issues,
     scheduled_alpha_issues,
+    spherical_only_issues,
 )
 
 NAME = "foh-ptr"
@@ -38,6 +39,7 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         out.append(
             issue("energy", f"{NAME} works in time and ignores energy bounds; leave energy out")
         )
+    out.extend(spherical_only_issues(doc, NAME))
     out.extend(objective_issues(doc, NAME, OBJECTIVES, "optimize"))
     options = doc.method
     if isinstance(options, FohPtrOptions):

@@ -4,7 +4,12 @@ before any work is done."""
 from __future__ import annotations
 
 from app.schemas import FieldIssue, ProblemDocument
-from worker.solver.methods.base import FINAL_EXTREMES, issue, objective_issues
+from worker.solver.methods.base import (
+    FINAL_EXTREMES,
+    issue,
+    objective_issues,
+    spherical_only_issues,
+)
 
 NAME = "hp-scp"
 OBJECTIVES = ("min_time", "max_terminal_velocity", *FINAL_EXTREMES)
@@ -13,7 +18,8 @@ OBJECTIVES = ("min_time", "max_terminal_velocity", *FINAL_EXTREMES)
 def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     """Features the method cannot express."""
     out: list[FieldIssue] = []
-    if doc.vehicle.angle_of_attack.mode != "optimized":
+    attack = doc.vehicle.angle_of_attack
+    if attack is not None and attack.mode != "optimized":
         out.append(
             issue(
                 "vehicle.angle_of_attack",
@@ -44,5 +50,6 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         out.append(
             issue("energy", f"{NAME} works in time and ignores energy bounds; leave energy out")
         )
+    out.extend(spherical_only_issues(doc, NAME))
     out.extend(objective_issues(doc, NAME, OBJECTIVES, "optimize"))
     return out

@@ -1,0 +1,136 @@
+"""The Chebyshev SCvx's reference and its linearization: collocation defects and Jacobians at
+the control points (paper 001 eqs. 26-29), path quantities in log form with their gradients
+(eq. 33), zone distances at the points and between them, waypoint misses at the joints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from worker.solver.constraints.log_path import log_path_rows
+from worker.solver.constraints.no_fly import zone_distance
+from worker.solver.methods.cheb_scvx.segments import Segments
+from worker.solver.models.lift_vector import PlanetModel, lift_vector_dynamics, polar_of
+from worker.solver.models.point_mass import PH, TH, R, V
+from worker.solver.path_limits import path_values
+from worker.solver.problem import EntryProblem
+
+Array = np.ndarray
+
+
+@dataclass
+class ChebIterate:
+    """A reference: states at the state points, lift vector at the control points, durations."""
+
+    y: Array  # (P, 6) nondimensional
+    u: Array  # (Q, 3)
+    T: Array  # (S,) nondimensional segment durations
+
+
+@dataclass
+class PathLog:
+    """ln(p / p_max) at the control points (Q, m) and its partials in r, V and u3."""
+
+    names: tuple[str, ...]
+    g: Array
+    g_r: Array
+    g_v: Array
+    g_u3: Array
+
+
+@dataclass
+class ZoneLin:
+    """One zone's distance (rad) at the state points followed by the between samples, with its
+    partials in latitude and longitude."""
+
+    c: Array
+    c_lat: Array
+    c_lon: Array
+
+
+@dataclass
+class ChebLinearization:
+    """Everything the subproblem needs about one reference."""
+
+    f: Array  # (Q, 6)
+    A: Array  # (Q, 6, 6)
+    B: Array  # (Q, 6, 3)
+    defects: Array  # (P - 1, 6): the integral-form defects, interval-major (nondimensional)
+    path: PathLog
+    heat: Array  # (Q,) heat rate W/m^2 (zeros without a heating model)
+    heat_r: Array
+    heat_v: Array
+    zones: list[ZoneLin]
+    sample_y: Array  # (samples, 6) the reference between the points
+
+
+def defects(segments: Segments, it: ChebIterate, f: Array) -> Array:
+    """y_i - y_0 - (T_s / 2) sum_k B_ik f_k at points i = 1..n_s of each interval (the integral
+    form of paper 001 eq. 26: B the CGL integration matrix), interval-major, (sum n_s, 6).
+
+    The differential form D y = (T/2) f at all n + 1 points of eq. 26 asks one condition too
+    many per state: the values of f must lie on a polynomial of degree n - 1. Where the controls
+    cannot steer f (above the atmosphere, or for r' = V gamma) that extra condition leaves a
+    defect no step can remove; the integral form asks exactly n conditions per state."""
+    out = np.empty((segments.state_points - 1, 6))
+    row = 0
+    for s, n in enumerate(segments.degrees):
+        y = it.y[segments.states_of(s)]
+        integral = segments.integration(s) @ f[segments.controls_of(s)]
+        out[row : row + n] = y[1:] - y[0] - 0.5 * it.T[s] * integral[1:]
+        row += n
+    return out
+
+
+def between_states(segments: Segments, y: Array) -> Array:
+    """The interpolating polynomials' states at the between samples, segment-major."""
+    parts = [w @ y[segments.states_of(s)] for s, (_, w) in enumerate(segments.between)]
+    return np.concatenate(parts) if parts else np.zeros((0, 6))
+
+
+def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, Array, Array, Array]:
+    """ln(p/p_max) of the active limits with partials in (r, V, u3), and the heat rate with its
+    (r, V) partials, at states ``y`` and lift vectors ``u``. The load factor is flown at
+    lam = sqrt(u3) (an upper bound on |(u1, u2)| under the relaxation: the row is conservative);
+    its u3 partial is taken in u3 itself, finite at lam = 0."""
+    forces = problem.forces
+    polar = polar_of(forces)
+    r, v = y[:, R], y[:, V]
+    u3 = np.maximum(u[:, 2], 0.0)
+    ft = forces.terms(r, v, np.sqrt(u3))
+    rows = log_path_rows(problem, r, v, ft)
+    g_u3 = np.zeros_like(rows.g)
+    if "load_factor" in rows.names:
+        cls2 = polar.cl_star * polar.cl_star
+        cd = polar.cd0 + polar.k_induced * cls2 * u3
+        g_u3[:, rows.names.index("load_factor")] = (
+            0.5 * (cls2 + 2.0 * cd * polar.k_induced * cls2) / (cls2 * u3 + cd * cd)
+        )
+    pv = path_values(forces, problem.heat_model, r, v, ft)
+    return (
+        PathLog(rows.names, rows.g, rows.g_r, rows.g_v, g_u3),
+        pv.heat_rate,
+        pv.heat_rate_r,
+        pv.heat_rate_v,
+    )
+
+
+def linearize(
+    problem: EntryProblem, segments: Segments, it: ChebIterate, model: PlanetModel
+) -> ChebLinearization:
+    """The linearization about ``it`` at its control points."""
+    ys = it.y[segments.state_of_control]
+    d = lift_vector_dynamics(ys, it.u, problem.forces, problem.omega, model)
+    assert d.A is not None and d.B is not None
+    path, heat, heat_r, heat_v = path_log(problem, ys, it.u)
+    sample_y = between_states(segments, it.y)
+    every = np.vstack([it.y, sample_y])
+    zones = []
+    for zone in problem.no_fly_zones:
+        z = zone_distance(every[:, PH], every[:, TH], zone)
+        zones.append(ZoneLin(z.c, z.c_lat, z.c_lon))
+    return ChebLinearization(
+        d.f, d.A, d.B, defects(segments, it, d.f), path, heat, heat_r, heat_v, zones, sample_y
+    )

@@ -1,0 +1,487 @@
+"""Paper 001's Chebyshev pseudospectral SCvx as hooks of the shared driver (``scp.loop``).
+
+Each iteration linearizes the dynamics with the lift vector as control about the reference at
+the CGL points (eqs. 26-31), adds the path rows at the points where the reference violates (or
+nears) a limit (sec. 3.2.2, step 2; a point once added stays), solves problem P2 (eqs. 35-42)
+relaxed by L1 virtual control, and judges the step by SCvx's ratio of the actual to the
+predicted decrease of the penalized cost (Mao, Szmuk & Acikmese 2016): a poor ratio rejects it
+and halves the trust box, a good one doubles it (the paper's fixed box of eq. 44 is the
+initial one). Converged when an accepted step moves no point beyond the stop tolerances (eq. 43)
+with the defects, slacks and virtual control spent.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any, Unpack
+
+import numpy as np
+
+from app.schemas.methods.cheb_scvx import ChebScvxOptions
+from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
+from worker.solver.constraints.log_path import active_limits
+from worker.solver.methods.base import MethodResult, RunHooks, run_method
+from worker.solver.methods.cheb_scvx.linearization import (
+    ChebIterate,
+    ChebLinearization,
+    between_states,
+    linearize,
+)
+from worker.solver.methods.cheb_scvx.segments import LiftVectorPath, Segments
+from worker.solver.methods.cheb_scvx.start import (
+    guess_start,
+    guided_start,
+    leg_length,
+    propagated_start,
+    route_points,
+    route_start,
+)
+from worker.solver.methods.cheb_scvx.subproblem import (
+    PATH_UNIT,
+    ZONE_UNIT,
+    Columns,
+    Setup,
+    TerminalBound,
+    Units,
+    Waypoint,
+    build,
+    step_of,
+)
+from worker.solver.models.layout import POINT_MASS
+from worker.solver.models.lift_vector import PlanetModel
+from worker.solver.models.point_mass import PH, TH, V
+from worker.solver.problem import EntryProblem
+from worker.solver.scp import loop as scp
+from worker.solver.scp.history import IterationRecord, solver_fields
+from worker.solver.trajectory import OptimizedTrajectory
+
+Array = np.ndarray
+LIFT_UNIT = 0.1
+"""Unit of the scaled lift-vector changes."""
+FINAL_TIME_UNIT_S = 10.0
+"""Unit of the scaled segment-duration changes (s)."""
+HEAT_LOAD_UNIT = 1.0e6
+"""Unit of the heat-load objective term (J/m^2)."""
+RATIO_REJECT, RATIO_SHRINK, RATIO_GROW = 0.0, 0.25, 0.7
+"""SCvx's ratio thresholds: reject below the first, shrink the box below the second, grow it
+above the third (Mao, Szmuk & Acikmese 2016, Algorithm 1)."""
+RADIUS_MAX, RADIUS_MIN = 4.0, 1.0e-6
+"""Largest and smallest trust-box scale against the initial box."""
+FEASIBLE = 1.0e-3
+"""Largest defect or slack (scaled units: 1 km, 0.5 deg, 50 m/s ..., 1 % of a limit) of a
+reference that may be called converged."""
+RETRY_REGULARIZATION = 10.0
+"""Factor of the step regularization when a subproblem is solved again after a numerical stall."""
+WAYPOINT_MARGIN = 0.95
+"""Share of a waypoint's radius the points must pass within: the flight between the points and
+the tangent-plane metric on the sphere get the rest."""
+STATIONARY = 1.0e-9
+"""A predicted decrease below this share of the penalized cost: nothing left to gain."""
+
+
+@dataclass
+class _Pending:
+    """The candidate's linearization and penalized cost, the predicted cost, the step's size."""
+
+    lin: ChebLinearization
+    cost: float
+    predicted: float
+    small: bool
+    virtual: float
+
+
+class ChebScvx:
+    """Paper 001's method on the driver: start, linearize, build, propose, judge."""
+
+    def __init__(self, problem: EntryProblem, options: ChebScvxOptions, model: PlanetModel) -> None:
+        self.problem, self.options, self.model = problem, options, model
+        sc = problem.scales
+        route = route_points(problem)
+        self.route = route
+        if route is not None and problem.guess is None:
+            lengths = [leg_length(a, b, model) for a, b in itertools.pairwise(route)]
+        else:
+            lengths = [1.0]
+        self.segments = Segments.sized(
+            options.nodes, options.intervals, lengths, options.samples_between_points
+        )
+        self.units = Units(
+            POINT_MASS.trust_units(sc), np.full(3, LIFT_UNIT), FINAL_TIME_UNIT_S / sc.time_s
+        )
+        self.setup = self._setup()
+        tr = options.trust_region
+        self.box = np.concatenate(
+            [
+                POINT_MASS.deltas_from_si(tr, sc) / self.units.y,
+                np.full(3, tr.lift_control / LIFT_UNIT),
+                [tr.final_time_s / sc.time_s / self.units.t],
+            ]
+        )
+        self.radius = 1.0
+        self.tol = POINT_MASS.deltas_from_si(options.stop_tolerance, sc)
+        self.tol_t = options.stop_tolerance.final_time_s / sc.time_s
+        limits = len(active_limits(problem))
+        self.path_set = np.zeros((self.segments.control_points, limits), dtype=bool)
+        self.cols: Columns | None = None
+        self.q: Array | None = None
+        self.pending: _Pending | None = None
+        self.ref_cost: float | None = None
+        self._order = self._collocation_order()
+        self._conic: scp.ConicCall | None = None
+        self._limit = 0.0
+        self._problem: ConeProblem | None = None
+        self.retried = False
+        self.extra: dict[str, Any] = {
+            "legs": self.segments.leg_count,
+            "intervals": self.segments.count,
+            "interval_degrees": list(self.segments.degrees),
+            "planet_model": model,
+        }
+
+    # -- set-up ------------------------------------------------------------------------
+    def _setup(self) -> Setup:
+        p, sc = self.problem, self.problem.scales
+        assert p.lift_range is not None, "a polar vehicle carries its normalized-lift range"
+        lam_min, lam_max = p.lift_range
+        terminal = []
+        for j, key in POINT_MASS.terminal_states():
+            t = p.terminal[key]
+            if t.kind == "fixed":
+                terminal.append(TerminalBound(j, float(t.value or 0.0), float(t.value or 0.0)))
+            elif t.kind == "range":
+                terminal.append(TerminalBound(j, float(t.lo or 0.0), float(t.hi or 0.0)))
+        waypoints = [
+            Waypoint(
+                int(self.segments.joints[i]),
+                w.latitude,
+                w.longitude,
+                w.radius * WAYPOINT_MARGIN,
+                1.0 if self.model == "flat" else math.cos(w.latitude),
+            )
+            for i, w in enumerate(p.waypoints)
+        ]
+        obj_time, obj_heat = 0.0, 0.0
+        obj_state: dict[int, float] = {}
+        for term in p.objective:
+            w = term.weight
+            if term.name == "min_time":
+                obj_time += w * sc.time_s
+            elif term.name == "min_heat_load":
+                obj_heat += w * sc.time_s / HEAT_LOAD_UNIT
+            elif term.name == "max_terminal_velocity":
+                obj_state[V] = obj_state.get(V, 0.0) - w * sc.speed_m_s
+            elif term.name.endswith("final_latitude"):
+                sign = -1.0 if term.name.startswith("max") else 1.0
+                obj_state[PH] = obj_state.get(PH, 0.0) + sign * w * 180.0 / math.pi
+            elif term.name.endswith("final_longitude"):
+                sign = -1.0 if term.name.startswith("max") else 1.0
+                obj_state[TH] = obj_state.get(TH, 0.0) + sign * w * 180.0 / math.pi
+        final: tuple[float | None, float | None] = (None, None)
+        if p.final_time is not None:
+            final = (p.final_time, p.final_time)
+        elif p.final_time_max is not None:
+            final = (None, p.final_time_max)
+        return Setup(
+            units=self.units,
+            lam2=(lam_min * lam_min, lam_max * lam_max),
+            tan_bank=(math.tan(p.bank_min), math.tan(p.bank_max)),
+            terminal=terminal,
+            waypoints=waypoints,
+            objective_time=obj_time,
+            objective_state=obj_state,
+            objective_heat=obj_heat,
+            weight=self.options.weight_virtual_control,
+            final_time=final,
+            lift_weight=self.options.weight_induced_drag,
+        )
+
+    # -- driver hooks -------------------------------------------------------------------
+    def start(self) -> ChebIterate:
+        """The route guess, the caller's guess, or the constant-control flight."""
+        p, o = self.problem, self.options
+        tf = o.final_time_guess_s / p.scales.time_s if o.final_time_guess_s else None
+        if p.final_time is not None:
+            tf = p.final_time
+        if p.guess is not None:
+            return guess_start(p, self.segments)
+        if self.route is not None and tf is None:
+            guided = guided_start(p, self.segments, self.route, self.model)
+            if guided is not None:
+                return guided
+        if self.route is not None and len(self.route) > 2:
+            return route_start(p, self.segments, self.route, self.model, tf)
+        target = self.route[-1] if self.route is not None else None
+        return propagated_start(p, self.segments, self.model, tf, target)
+
+    def linearize(self, reference: ChebIterate) -> ChebLinearization:
+        """The linearization about ``reference``."""
+        return linearize(self.problem, self.segments, reference, self.model)
+
+    def subproblem(
+        self, reference: ChebIterate, linearization: ChebLinearization, iteration: int
+    ) -> ConeProblem:
+        """Problem P2 about the reference, the path rows at the (grown) violated set."""
+        margin = math.log(1.0 - self.options.path_margin) if self.options.path_margin else 0.0
+        self.path_set |= linearization.path.g > margin
+        self.ref_cost = self.penalized(reference, linearization)
+        problem, self.cols = build(
+            self.problem,
+            self.segments,
+            self.setup,
+            reference,
+            linearization,
+            self.path_set,
+            self.box * self.radius,
+        )
+        self.q = problem.q
+        return problem
+
+    def solve(
+        self, problem: ConeProblem, conic: scp.ConicCall, limit_s: float, deadline: float
+    ) -> ConicSolution:
+        """One conic solve (the call and the problem are kept for a second-order correction);
+        a solve that stalls numerically is retried once with the step regularization ten times
+        heavier, which the interior-point solver has always resolved."""
+        self._conic, self._limit, self._problem = conic, limit_s, problem
+        solution = conic(problem, limit_s)
+        self.retried = False
+        if solution.status.usable or solution.status == ConicStatus.TIME_LIMIT:
+            return solution
+        assert problem.P is not None
+        heavier = ConeProblem(problem.P * RETRY_REGULARIZATION, problem.q, problem.A, problem.b,
+                              problem.cones)  # fmt: skip
+        self.retried = True
+        self._problem = heavier
+        return conic(heavier, max(limit_s - solution.solve_time_s, 0.1))
+
+    def _collocation_order(self) -> Array:
+        """For each collocation row of the subproblem (interval, state, point), its entry in
+        the flattened (defect row, state) defects."""
+        order: list[int] = []
+        row = 0
+        for n in self.segments.degrees:
+            for j in range(6):
+                order += [6 * (row + i) + j for i in range(n)]
+            row += n
+        return np.asarray(order, dtype=np.int64)
+
+    def _second_order(
+        self, reference: ChebIterate, x: Array, lin: ChebLinearization
+    ) -> Array | None:
+        """A second-order correction of step ``x`` (Nocedal & Wright, Numerical Optimization,
+        sec. 18.3): the subproblem again with the collocation rows shifted by the defects'
+        second-order remainder at the candidate, against the Maratos effect of the exact L1
+        penalty (tangential steps whose defects are second order rejected). None when the
+        corrected subproblem is not solved."""
+        assert self.cols is not None and self._problem is not None
+        cp = self._problem
+        rows = (self.segments.state_points - 1) * 6
+        linear = x.copy()
+        linear[self.cols.nu : self.cols.slack] = 0.0
+        predicted = cp.A[:rows] @ linear - cp.b[:rows]
+        actual = (lin.defects / self.units.y[None, :]).ravel()[self._order]
+        b = cp.b.copy()
+        b[:rows] -= actual - predicted
+        corrected = ConeProblem(cp.P, cp.q, cp.A, b, cp.cones)
+        assert self._conic is not None
+        solution = self._conic(corrected, self._limit)
+        if not solution.status.usable or solution.x is None:
+            return None
+        return solution.x
+
+    def propose(
+        self,
+        reference: ChebIterate,
+        linearization: ChebLinearization,
+        solution: ConicSolution,
+        iteration: int,
+    ) -> scp.Proposal[ChebIterate]:
+        """The candidate, its penalized cost and the record."""
+        assert solution.x is not None and self.cols is not None and self.q is not None
+        x = solution.x
+        new, lin, cost = self._candidate(reference, x)
+        assert self.ref_cost is not None
+        predicted = self.objective(reference, linearization) + float(self.q @ x)
+        corrected = False
+        if self.ref_cost - cost < RATIO_SHRINK * (self.ref_cost - predicted):
+            x2 = self._second_order(reference, x, lin)
+            if x2 is not None:
+                new2, lin2, cost2 = self._candidate(reference, x2)
+                if cost2 < cost:
+                    x, new, lin, cost, corrected = x2, new2, lin2, cost2, True
+        dy, dT = new.y - reference.y, new.T - reference.T
+        virtual = float(np.max(np.abs(x[self.cols.nu : self.cols.slack]), initial=0.0))
+        change = np.max(np.abs(dy), axis=0)
+        small = bool(np.all(change <= self.tol) and np.all(np.abs(dT) <= self.tol_t))
+        small = small and self.infeasibility(new, lin) <= FEASIBLE
+        u = new.u
+        gap = float(np.max(u[:, 2] - u[:, 0] ** 2 - u[:, 1] ** 2))
+        sc = self.problem.scales
+        terms = self.term_values(new, lin)
+        record = IterationRecord(
+            iteration=iteration,
+            cost=next(iter(terms.values())) if len(terms) == 1 else self.objective(new, lin),
+            cost_terms={**terms, "final_time_s": float(np.sum(new.T)) * sc.time_s},
+            objective_value=None,
+            max_state_change=POINT_MASS.deltas_to_si(change, sc),
+            trust_region_slack=float(self.radius),
+            virtual_control_norm=float(np.sum(np.abs(x[self.cols.nu : self.cols.slack]))),
+            linearization_error=float(np.max(np.abs(lin.defects) / self.units.y)),
+            nodes_post_corrected=0,
+            relaxation_gap=gap,
+            subproblem_cost=predicted,
+            extra={
+                "trust_radius": self.radius,
+                "path_points": int(np.count_nonzero(self.path_set.any(axis=1))),
+                "path_rows": int(np.count_nonzero(self.path_set)),
+                "infeasibility": self.infeasibility(new, lin),
+                "leg_durations_s": [
+                    float(np.sum(new.T[self.segments.leg_intervals(leg)])) * sc.time_s
+                    for leg in range(self.segments.leg_count)
+                ],
+                "final_time_change_s": float(np.sum(dT)) * sc.time_s,
+                "second_order_correction": corrected,
+                "regularized_retry": self.retried,
+            },
+            **solver_fields(solution),
+        )
+        self.pending = _Pending(lin, cost, predicted, small, virtual)
+        return scp.Proposal(new, record)
+
+    def _candidate(
+        self, reference: ChebIterate, x: Array
+    ) -> tuple[ChebIterate, ChebLinearization, float]:
+        """The reference moved by solution ``x``, its linearization and penalized cost."""
+        assert self.cols is not None
+        dy, du, dT = step_of(x, self.cols, self.units, self.segments)
+        new = ChebIterate(reference.y + dy, reference.u + du, reference.T + dT)
+        lin = linearize(self.problem, self.segments, new, self.model)
+        return new, lin, self.penalized(new, lin)
+
+    def judge(
+        self, reference: ChebIterate, proposal: scp.Proposal[ChebIterate]
+    ) -> scp.Judgement[ChebIterate, ChebLinearization]:
+        """SCvx's ratio test and trust-box update."""
+        pend = self.pending
+        assert pend is not None and self.ref_cost is not None
+        predicted = self.ref_cost - pend.predicted
+        actual = self.ref_cost - pend.cost
+        scale = max(1.0, abs(self.ref_cost))
+        record = proposal.record
+        ratio = 1.0 if predicted <= STATIONARY * scale else actual / predicted
+        record.extra["ratio"] = ratio
+        record.extra["predicted_decrease"] = predicted
+        record.extra["actual_decrease"] = actual
+        if ratio < RATIO_REJECT and predicted > STATIONARY * scale:
+            self.radius = max(self.radius / 2.0, RADIUS_MIN)
+            record.extra["accepted"] = False
+            return scp.Judgement(False)
+        if ratio < RATIO_SHRINK:
+            self.radius = max(self.radius / 2.0, RADIUS_MIN)
+        elif ratio > RATIO_GROW:
+            self.radius = min(self.radius * 2.0, RADIUS_MAX)
+        record.extra["accepted"] = True
+        return scp.Judgement(
+            True, small=pend.small, virtual_control=pend.virtual, linearization=pend.lin
+        )
+
+    # -- costs ------------------------------------------------------------------------
+    def objective(self, it: ChebIterate, lin: ChebLinearization) -> float:
+        """The objective in the subproblem's units on ``it``."""
+        st = self.setup
+        value = st.objective_time * float(np.sum(it.T))
+        if st.lift_weight:
+            for s in range(self.segments.count):
+                ctrl = self.segments.controls_of(s)
+                value += st.lift_weight * float(self.segments.quadrature(s) @ it.u[ctrl, 2])
+        for j, w in st.objective_state.items():
+            value += w * float(it.y[-1, j])
+        if st.objective_heat:
+            value += st.objective_heat * self._heat_load(it, lin)
+        return value
+
+    def _heat_load(self, it: ChebIterate, lin: ChebLinearization) -> float:
+        """Integral of the heat rate (W/m^2 x nondimensional time), Clenshaw-Curtis."""
+        total = 0.0
+        for s in range(self.segments.count):
+            ctrl = self.segments.controls_of(s)
+            total += 0.5 * float(it.T[s]) * float(self.segments.quadrature(s) @ lin.heat[ctrl])
+        return total
+
+    def violations(self, it: ChebIterate, lin: ChebLinearization) -> Array:
+        """Every scaled defect magnitude and excess the penalty counts."""
+        parts = [np.abs(lin.defects).ravel() / np.tile(self.units.y, lin.defects.shape[0])]
+        if self.path_set.any():
+            parts.append(np.maximum(lin.path.g[self.path_set], 0.0) / PATH_UNIT)
+        for zone, zl in zip(self.problem.no_fly_zones, lin.zones, strict=True):
+            parts.append(np.maximum(zone.radius - zl.c, 0.0) / ZONE_UNIT)
+        for w in self.setup.waypoints:
+            d = math.hypot(
+                it.y[w.point, PH] - w.latitude, w.lon_factor * (it.y[w.point, TH] - w.longitude)
+            )
+            parts.append(np.array([max(d - w.radius, 0.0) / ZONE_UNIT]))
+        last = it.y[-1]
+        for t in self.setup.terminal:
+            j = t.state
+            excess = max(last[j] - t.hi, t.lo - last[j], 0.0) / self.units.y[j]
+            parts.append(np.array([excess]))
+        return np.concatenate(parts)
+
+    def infeasibility(self, it: ChebIterate, lin: ChebLinearization) -> float:
+        """The largest scaled defect or excess."""
+        return float(np.max(self.violations(it, lin), initial=0.0))
+
+    def penalized(self, it: ChebIterate, lin: ChebLinearization) -> float:
+        """Objective + weight x the L1 norm of the defects and excesses (the merit function)."""
+        return self.objective(it, lin) + self.setup.weight * float(np.sum(self.violations(it, lin)))
+
+    # -- results ----------------------------------------------------------------------
+    def term_values(self, it: ChebIterate, lin: ChebLinearization) -> dict[str, float]:
+        """Each objective term's value (SI: s, m/s, deg, J/m^2) on ``it``."""
+        sc = self.problem.scales
+        values: dict[str, float] = {}
+        for term in self.problem.objective:
+            if term.name == "min_time":
+                values[term.name] = float(np.sum(it.T)) * sc.time_s
+            elif term.name == "max_terminal_velocity":
+                values[term.name] = float(it.y[-1, V]) * sc.speed_m_s
+            elif term.name.endswith("final_latitude"):
+                values[term.name] = math.degrees(float(it.y[-1, PH]))
+            elif term.name.endswith("final_longitude"):
+                values[term.name] = math.degrees(float(it.y[-1, TH]))
+            elif term.name == "min_heat_load":
+                values[term.name] = self._heat_load(it, lin) * sc.time_s
+        return values
+
+    def trajectory(self, reference: ChebIterate) -> OptimizedTrajectory:
+        """The state points as a time trajectory, bank and lam as the method represents them."""
+        p = self.problem
+        assert p.lift_range is not None
+        path = LiftVectorPath(
+            self.segments, reference.T.copy(), reference.u.copy(),
+            (p.bank_min, p.bank_max), p.lift_range,
+        )  # fmt: skip
+        t = self.segments.times(reference.T)
+        bank, lam = path.at(t)
+        return OptimizedTrajectory(
+            "time", t, reference.y.copy(), t, bank, alpha_deg=lam, attitude=path
+        )
+
+    def objective_terms(self, outcome: scp.ScpOutcome[ChebIterate]) -> dict[str, float]:
+        """Each term's value (SI) on the last reference."""
+        ref = outcome.reference
+        if ref is None:
+            return {}
+        return self.term_values(ref, self.linearize(ref))
+
+
+def samples_of(method: ChebScvx, it: ChebIterate) -> Array:
+    """The reference between the points (for tests and plots)."""
+    return between_states(method.segments, it.y)
+
+
+def run(problem: EntryProblem, options: ChebScvxOptions, **hooks: Unpack[RunHooks]) -> MethodResult:
+    """Run paper 001's Chebyshev SCvx on ``problem`` with its ``options``."""
+    return run_method(lambda: ChebScvx(problem, options, problem.planet_model), options, hooks)

@@ -1,0 +1,90 @@
+"""What paper 001's Chebyshev SCvx cannot express: refused with a field path and a reason before
+any work is done."""
+
+from __future__ import annotations
+
+from app.schemas import FieldIssue, ProblemDocument
+from worker.solver.methods.base import FINAL_EXTREMES, issue, objective_issues
+
+NAME = "cheb-scvx"
+OBJECTIVES = ("min_time", "max_terminal_velocity", "min_heat_load", *FINAL_EXTREMES)
+
+
+def check_support(doc: ProblemDocument) -> list[FieldIssue]:
+    """Features the method cannot express."""
+    out: list[FieldIssue] = []
+    if doc.vehicle.aerodynamics.model != "parabolic_polar":
+        out.append(
+            issue(
+                "vehicle.aerodynamics",
+                f"{NAME} flies the lift vector (lambda cos sigma, lambda sin sigma, lambda^2) of "
+                'a parabolic polar; give {"model": "parabolic_polar", ...}',
+            )
+        )
+    limits = doc.control_limits
+    if limits.bank_max_deg >= 90.0 or limits.bank_lower_deg <= -90.0:
+        out.append(
+            issue(
+                "control_limits.bank_max_deg",
+                f"{NAME} bounds the bank by linear cuts u2 <= tan(sigma_max) u1 (paper 001 eq. "
+                "41), which need the bank range inside (-90, 90) deg",
+            )
+        )
+    if limits.bank_rate_max_deg_s is not None:
+        out.append(
+            issue(
+                "control_limits.bank_rate_max_deg_s",
+                f"{NAME} has the lift vector as its control and no bank-rate limit; leave it out",
+            )
+        )
+    if limits.alpha_rate_max_deg_s is not None:
+        out.append(
+            issue(
+                "control_limits.alpha_rate_max_deg_s",
+                f"{NAME} flies a normalized lift, not an angle of attack",
+            )
+        )
+    if doc.initial_state.bank_deg is not None:
+        out.append(
+            issue("initial_state.bank_deg", f"{NAME} leaves the initial bank free; leave it out")
+        )
+    hr = doc.path_constraints.heat_rate
+    if hr is not None and hr.alpha_polynomial:
+        out.append(
+            issue(
+                "path_constraints.heat_rate.alpha_polynomial",
+                f"{NAME}'s vehicle has no angle of attack for a heating factor",
+            )
+        )
+    for key in ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s",
+                "flight_path_angle_deg", "heading_deg"):  # fmt: skip
+        if getattr(doc.terminal, key).kind == "soft":
+            out.append(
+                issue(
+                    f"terminal.{key}",
+                    f"{NAME} takes fixed, range or free terminal conditions, not soft targets",
+                )
+            )
+    target = doc.target_point_deg()
+    if doc.waypoints and target is None:
+        out.append(
+            issue(
+                "waypoints",
+                f"{NAME} places waypoints on segments of the route to a target point; give the "
+                "terminal latitude and longitude",
+            )
+        )
+    if doc.waypoints and doc.initial_guess is not None:
+        out.append(
+            issue(
+                "initial_guess",
+                f"{NAME} starts a problem with waypoints from its own route guess; leave "
+                "initial_guess out",
+            )
+        )
+    if doc.energy is not None:
+        out.append(
+            issue("energy", f"{NAME} works in time and ignores energy bounds; leave energy out")
+        )
+    out.extend(objective_issues(doc, NAME, OBJECTIVES, "optimize"))
+    return out
