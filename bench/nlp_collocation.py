@@ -12,7 +12,8 @@ free final time, bank limits (bank as a state and its rate as the control when a
 given, else the bank as the control), an optimized angle of attack (``vehicle.angle_of_attack``
 mode "optimized": alpha a state and its rate a control, paper 003 eq. 1, within its bounds),
 great-circle or lat/lon no-fly zones, and the objectives maximum terminal velocity, minimum heat
-load and minimum time.
+load and minimum time. Parabolic-polar vehicles fly their normalized lift lambda as a second
+control beside the bank (paper 001), over the sphere or on paper 001's flat-Earth model.
 
 CasADi is an optional benchmark dependency (``pip install -e '.[bench]'``); nothing in the
 service imports this module.
@@ -57,6 +58,14 @@ def _target(terminal: dict[str, Any], name: str) -> float | None:
     return None
 
 
+def _range(terminal: dict[str, Any], name: str) -> tuple[float, float] | None:
+    """A range terminal condition's bounds (SI, degrees), or None."""
+    entry = terminal.get(name)
+    if isinstance(entry, dict) and entry.get("kind") == "range":
+        return float(entry["lo"]), float(entry["hi"])
+    return None
+
+
 class EntryNlp:
     """The NLP of one problem document on ``intervals`` uniform intervals, built once and
     solvable many times (each solve from the same initial guess)."""
@@ -90,14 +99,29 @@ class EntryNlp:
         vehicle = document["vehicle"]
         self.area_over_mass = float(vehicle["reference_area_m2"]) / float(vehicle["mass_kg"])
         aero = vehicle["aerodynamics"]
-        if aero.get("model") != "polynomial" or aero.get("cd_argument", "alpha") != "cl":
-            raise ValueError("the NLP transcription covers CL(alpha) and CD(CL) polynomials")
-        self.cl_c = [float(c) for c in aero["cl_coefficients"]]
-        self.cd_c = [float(c) for c in aero["cd_coefficients"]]
+        self.flat = planet.get("model", "spherical") == "flat"
+        self.polar: tuple[float, float, float, float, float] | None = None
+        if aero.get("model") == "parabolic_polar":  # lambda = CL / CL* a control (paper 001)
+            self.polar = (
+                float(aero["cl_star"]),
+                float(aero["cd0"]),
+                float(aero["k_induced"]),
+                float(aero.get("lambda_min", 0.0)),
+                float(aero.get("lambda_max", 1.0)),
+            )
+        elif aero.get("model") != "polynomial" or aero.get("cd_argument", "alpha") != "cl":
+            raise ValueError("the NLP transcription covers CL(alpha), CD(CL) or a polar")
+        else:
+            self.cl_c = [float(c) for c in aero["cl_coefficients"]]
+            self.cd_c = [float(c) for c in aero["cd_coefficients"]]
+        heat = (document.get("path_constraints") or {}).get("heat_rate") or {}
+        self.heat_exponent = float(heat.get("velocity_exponent", 3.15))
         limits = document.get("control_limits", {})
         self.bank_max = math.radians(float(limits.get("bank_max_deg", 90.0)))
         rate = limits.get("bank_rate_max_deg_s")
         self.bank_rate_max = None if rate is None else math.radians(float(rate)) * self.t_unit
+        if self.polar is not None and rate is not None:
+            raise ValueError("the NLP transcription flies a polar with bank and lambda controls")
         self.alpha_rate_max = 0.0
         self.alpha_range = (0.0, 0.0)
         attack = vehicle.get("angle_of_attack") or {}
@@ -117,24 +141,40 @@ class EntryNlp:
         dv = v_m_s - 4570.0
         return ca.if_else(v_m_s > 4570.0, 40.0, 40.0 - k * dv * dv)
 
-    def _forces(self, r: Any, v: Any, alpha_rad: Any = None) -> tuple[Any, Any, Any, Any]:
+    def _forces(
+        self, r: Any, v: Any, alpha_rad: Any = None, lam: Any = None
+    ) -> tuple[Any, Any, Any, Any]:
         """Lift and drag accelerations (g0 units), density (kg/m^3) and speed (m/s); alpha from
-        the state when it is optimized, else from the velocity schedule."""
+        the state when it is optimized, else from the velocity schedule; a polar's lambda."""
         ca = self.ca
         h = (r - 1.0) * self.radius
         rho = self.rho0 * ca.exp(-h / self.scale_height)
         v_si = v * self.v_unit
-        alpha = self._alpha_deg(v_si) if alpha_rad is None else alpha_rad * (180.0 / math.pi)
-        cl = self.cl_c[0] + self.cl_c[1] * alpha + self.cl_c[2] * alpha * alpha
-        cd = self.cd_c[0] + self.cd_c[1] * cl + self.cd_c[2] * cl * cl
+        if self.polar is not None:
+            cl = lam * self.polar[0]
+            cd = self.polar[1] + self.polar[2] * cl * cl
+        else:
+            alpha = self._alpha_deg(v_si) if alpha_rad is None else alpha_rad * (180.0 / math.pi)
+            cl = self.cl_c[0] + self.cl_c[1] * alpha + self.cl_c[2] * alpha * alpha
+            cd = self.cd_c[0] + self.cd_c[1] * cl + self.cd_c[2] * cl * cl
         q_over_mass = 0.5 * rho * v_si * v_si * self.area_over_mass / self.g0
         return q_over_mass * cl, q_over_mass * cd, rho, v_si
 
-    def _rates(self, x: Any, bank: Any, alpha: Any = None) -> Any:
-        """d/dt of [r, theta, phi, V, gamma, psi] (paper 000 eq. 1, nondimensional)."""
+    def _rates(self, x: Any, bank: Any, alpha: Any = None, lam: Any = None) -> Any:
+        """d/dt of [r, theta, phi, V, gamma, psi] (paper 000 eq. 1, nondimensional), or of
+        paper 001's flat-Earth model (eq. 1) on the same states."""
         ca = self.ca
         r, _, phi, v, gam, psi = (x[i] for i in range(6))
-        lift, drag, _, _ = self._forces(r, v, alpha)
+        lift, drag, _, _ = self._forces(r, v, alpha, lam)
+        if self.flat:
+            return ca.vertcat(
+                v * gam,
+                v * ca.sin(psi),
+                v * ca.cos(psi),
+                -drag,
+                (lift * ca.cos(bank) - 1.0) / v + v,
+                lift * ca.sin(bank) / v,
+            )
         w = self.omega
         sg, cg, sp, cp, sf, cf = (
             ca.sin(gam),
@@ -162,14 +202,15 @@ class EntryNlp:
         )
         return ca.vertcat(dr, dtheta, dphi, dv, dgam, dpsi)
 
-    def _path(self, x: Any) -> dict[str, Any]:
+    def _path(self, x: Any, lam: Any = None) -> dict[str, Any]:
         """Heat rate (W/m^2), dynamic pressure (Pa), load factor (g)."""
         ca = self.ca
-        lift, drag, rho, v_si = self._forces(x[0], x[3], x[7] if self.alpha_state else None)
+        alpha = x[7] if self.alpha_state else None
+        lift, drag, rho, v_si = self._forces(x[0], x[3], alpha, lam)
         heat = self.doc.get("path_constraints", {}).get("heat_rate") or {}
         k_q = float(heat.get("k_q", 0.0))
         return {
-            "heat_rate": k_q * ca.sqrt(rho) * v_si**3.15,
+            "heat_rate": k_q * ca.sqrt(rho) * v_si**self.heat_exponent,
             "dynamic_pressure": 0.5 * rho * v_si * v_si,
             "load_factor": ca.sqrt(lift * lift + drag * drag),
         }
@@ -180,7 +221,7 @@ class EntryNlp:
         doc, n = self.doc, self.n
         opti = ca.Opti()
         rate_state = self.bank_rate_max is not None
-        nu = 2 if self.alpha_state else 1
+        nu = 2 if self.alpha_state or self.polar is not None else 1
         nx = 6 + nu if rate_state else 6
         X = opti.variable(nx, n + 1)  # nodes
         Xm = opti.variable(nx, n)  # midpoints
@@ -195,8 +236,13 @@ class EntryNlp:
             """The collocated rates: the point-mass rates and, with a rate limit, the bank's
             (and alpha's, when it is optimized)."""
             alpha = x[7] if self.alpha_state else None
+            if self.polar is not None:
+                return self._rates(x, u[0], None, u[1])
             rates = self._rates(x, x[6] if rate_state else u, alpha)
             return ca.vertcat(rates, u) if rate_state else rates
+
+        def lam_of(u: Any) -> Any:
+            return u[1] if self.polar is not None else None
 
         heat_terms = []
         path = doc.get("path_constraints", {})
@@ -206,14 +252,14 @@ class EntryNlp:
             "load_factor": (path.get("load_factor") or {}).get("max_g"),
         }
         zones = doc.get("no_fly_zones") or []
-        node_path = [self._path(X[:, k]) for k in range(n + 1)]
+        node_path = [self._path(X[:, k], lam_of(U[:, k])) for k in range(n + 1)]
         rates = [f(X[:, k], U[:, k]) for k in range(n + 1)]
         mid_path = []
         for k in range(n):
             fk, fk1, fm = rates[k], rates[k + 1], f(Xm[:, k], Um[:, k])
             opti.subject_to(Xm[:, k] == 0.5 * (X[:, k] + X[:, k + 1]) + h / 8.0 * (fk - fk1))
             opti.subject_to(X[:, k + 1] - X[:, k] == h / 6.0 * (fk + 4.0 * fm + fk1))
-            mid = self._path(Xm[:, k])
+            mid = self._path(Xm[:, k], lam_of(Um[:, k]))
             heat_terms.append(
                 h
                 / 6.0
@@ -231,7 +277,11 @@ class EntryNlp:
         for zone in zones:
             lat_c = math.radians(float(zone["center_latitude_deg"]))
             lon_c = math.radians(float(zone["center_longitude_deg"]))
-            radius = math.radians(float(zone["radius_deg"]))
+            radius = (
+                math.radians(float(zone["radius_deg"]))
+                if zone.get("radius_deg") is not None
+                else float(zone["radius_km"]) * 1000.0 / self.radius
+            )
             for cols in (X, Xm):
                 lon, lat = cols[1, :], cols[2, :]
                 if zone.get("metric", "great_circle") == "great_circle":
@@ -242,7 +292,10 @@ class EntryNlp:
                 else:
                     opti.subject_to((lat - lat_c) ** 2 + (lon - lon_c) ** 2 >= radius**2)
         # bounds
-        banks = [X[6, :], Xm[6, :]] if rate_state else [U, Um]
+        banks = [X[6, :], Xm[6, :]] if rate_state else [U[0, :], Um[0, :]]
+        if self.polar is not None:
+            for u in (U, Um):
+                opti.subject_to(opti.bounded(self.polar[3], u[1, :], self.polar[4]))
         for b in banks:
             opti.subject_to(opti.bounded(-self.bank_max, b, self.bank_max))
         if rate_state:
@@ -268,6 +321,10 @@ class EntryNlp:
             target = _target(terminal, name)
             if target is not None:
                 opti.subject_to(X[i, n] == self._nd_value(i, target))
+            bounds = _range(terminal, name)
+            if bounds is not None:
+                lo, hi = (self._nd_value(i, b) for b in bounds)
+                opti.subject_to(opti.bounded(lo, X[i, n], hi))
         energy = doc.get("energy") or {}
         if "final" in energy and _target(terminal, "velocity_m_s") is None:
             e_f = float(energy["final"])  # e = 1/r - V^2/2 (paper 000 eq. 7)
@@ -318,10 +375,14 @@ class EntryNlp:
         x = ca.MX.sym("x", 6)
         b = ca.MX.sym("b")
         alpha = math.radians(GUESS_ALPHA_DEG) if self.alpha_state else None
-        rhs = ca.Function("rhs", [x, b], [self._rates(x, b, alpha)])
+        lam = 1.0 if self.polar is not None else None
+        rhs = ca.Function("rhs", [x, b], [self._rates(x, b, alpha, lam)])
         init = self._nd_state(self.doc["initial_state"])
         terminal = self.doc["terminal"]
         h_target = _target(terminal, "altitude_m")
+        h_range = _range(terminal, "altitude_m")
+        if h_target is None and h_range is not None:
+            h_target = h_range[0]
         r_end = 1.0 + (h_target or 0.0) / self.radius
         final = self.doc.get("final_time") or {}
         t_total = float(final["value_s"]) / self.t_unit if self.fixed_tf else 4000.0 / self.t_unit
@@ -379,6 +440,9 @@ class EntryNlp:
                 mids = np.vstack([mids, np.full(self.n, alpha)])
             opti.set_initial(self.U, 0.0)
             opti.set_initial(self.Um, 0.0)
+        elif self.polar is not None:
+            opti.set_initial(self.U, np.vstack([np.full(self.n + 1, bank), np.ones(self.n + 1)]))
+            opti.set_initial(self.Um, np.vstack([np.full(self.n, bank), np.ones(self.n)]))
         else:
             opti.set_initial(self.U, bank)
             opti.set_initial(self.Um, bank)

@@ -32,6 +32,10 @@ TOLERANCE = 0.003
 
 REQUIRED: frozenset[str] = frozenset(
     {
+        "cheb-active-zone",
+        "cheb-cavh-min-time",
+        "cheb-cavh-spherical",
+        "cheb-cavh-waypoints",
         "energy-hard-terminal",
         "energy-heat-rate-800",
         "energy-max-final-latitude",

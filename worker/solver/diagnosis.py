@@ -56,11 +56,33 @@ def stall_note(history: Sequence[Mapping[str, Any]], options: ScpRunOptions) -> 
     return "; ".join(parts) or None
 
 
+RELAXATION_GAP = 1.0e-3
+"""A lift-vector method's last relaxation gap above which the advice names it."""
+
+
+def _relaxation_gap(document: Mapping[str, Any]) -> float | None:
+    """The last iteration's relaxation gap of a lift-vector method when it is not spent."""
+    history = document.get("history") or []
+    if document.get("method") != "cheb-scvx" or not history:
+        return None
+    gap = history[-1].get("relaxation_gap")
+    return float(gap) if gap is not None and gap > RELAXATION_GAP else None
+
+
 def advice(document: Mapping[str, Any], options: ScpRunOptions) -> list[str]:
     """What a user can change to make this failed result succeed, most likely first."""
     failure = document.get("failure") or {}
     code = failure.get("code")
     out: list[str] = []
+    gap = _relaxation_gap(document)
+    if gap is not None:
+        out.append(
+            f"the relaxed lift cone is not tight (u3 exceeds u1^2 + u2^2 by {gap:.3g}): the "
+            "optimizer asks for drag without its lift, which no vehicle flies; the objective "
+            "rewards shedding energy (a target near for the entry speed, a fixed final time). "
+            "The relaxation is exact where drag always costs: minimum time over a long range, "
+            "maximum terminal speed with a free final time"
+        )
     if code == "max_iterations":
         out.append(
             f"raise method.max_iterations (it was {options.max_iterations}): the iterates were "

@@ -59,7 +59,7 @@ class ChebScvxOptions(ScpRunOptions):
     intervals: int = Field(
         20,
         ge=1,
-        le=200,
+        le=999,
         description="CGL intervals of the flight, shared among the legs like the points; the "
         "intervals of a leg share its duration equally. 1 = paper 001's single Chebyshev "
         "interval (paper 001's own case needs some 200 points to fly as planned: its skipping "

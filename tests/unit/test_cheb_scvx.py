@@ -1,0 +1,241 @@
+"""Paper 001's Chebyshev SCvx (cheb-scvx): the lift-vector dynamics, the mesh of legs and
+intervals, the relaxed cone, the path rows' violated set, the refusals and a failed run.
+
+Tolerances: Jacobians against complex-step derivatives (step 1e-30, exact to round-off) at
+rtol 1e-9; the integral-form defects of a polynomial trajectory vanish to 1e-12 (the CGL
+integration matrix is exact on polynomials of the interval's degree); the converged relaxation
+gap at 1e-6 (the interior-point solver's tolerance is 1e-8 on the subproblem's scaled rows).
+The defects' bound is relative to the states' size (round-off of the integration matrix).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from app.schemas import ProblemDocument
+from worker.solver.methods.cheb_scvx.linearization import ChebIterate, defects
+from worker.solver.methods.cheb_scvx.method import ChebScvx
+from worker.solver.methods.cheb_scvx.segments import LiftVectorPath, Segments
+from worker.solver.methods.registry import check_support
+from worker.solver.models.lift_vector import lift_controls, lift_vector_dynamics
+from worker.solver.models.point_mass import time_dynamics
+from worker.solver.problem import build_problem
+from worker.solver.scenarios import get_scenario
+
+STEP = 1e-30
+
+
+def _doc(scenario: str = "cav-h-min-time", **method: Any) -> dict[str, Any]:
+    doc = copy.deepcopy(get_scenario(scenario).problem)
+    doc["method"] = {**doc["method"], **method}
+    return doc
+
+
+def _states(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    y = np.column_stack(
+        [
+            1.0 + rng.uniform(0.003, 0.015, n),
+            rng.uniform(-1.0, 1.0, n),
+            rng.uniform(-0.5, 0.5, n),
+            rng.uniform(0.3, 0.9, n),
+            rng.uniform(-0.1, 0.1, n),
+            rng.uniform(-3.0, 3.0, n),
+        ]
+    )
+    u = lift_controls(rng.uniform(0.2, 1.8, n), rng.uniform(-1.0, 1.0, n))
+    return y, u
+
+
+@pytest.mark.parametrize(
+    ("model", "omega"), [("spherical", 0.0), ("spherical", 0.06), ("flat", 0.0)]
+)
+def test_lift_vector_jacobians_match_complex_steps(model: str, omega: float) -> None:
+    problem = build_problem(ProblemDocument.model_validate(_doc()))
+    y, u = _states(7)
+    d = lift_vector_dynamics(y, u, problem.forces, omega, model)  # type: ignore[arg-type]
+    assert d.A is not None and d.B is not None
+    for j in range(6):
+        yc = y.astype(complex)
+        yc[:, j] += 1j * STEP
+        num = lift_vector_dynamics(yc, u, problem.forces, omega, model, jacobians=False)  # type: ignore[arg-type]
+        np.testing.assert_allclose(d.A[:, :, j], num.f.imag / STEP, rtol=1e-9, atol=1e-12)
+    for j in range(3):
+        uc = u.astype(complex)
+        uc[:, j] += 1j * STEP
+        num = lift_vector_dynamics(y, uc, problem.forces, omega, model, jacobians=False)  # type: ignore[arg-type]
+        np.testing.assert_allclose(d.B[:, :, j], num.f.imag / STEP, rtol=1e-9, atol=1e-12)
+
+
+def test_spherical_lift_vector_is_the_point_mass_model_flown_at_lambda() -> None:
+    """On the cone (u3 = u1^2 + u2^2) the method's dynamics are the verification's: the point-mass
+    equations with lambda in the angle of attack's place of the polar."""
+    problem = build_problem(ProblemDocument.model_validate(_doc()))
+    rng = np.random.default_rng(3)
+    lam, bank = rng.uniform(0.1, 2.0, 9), rng.uniform(-1.0, 1.0, 9)
+    y, _ = _states(9, seed=4)
+    u = lift_controls(lam, bank)
+    ours = lift_vector_dynamics(y, u, problem.forces, 0.05, "spherical", jacobians=False).f
+    flown = time_dynamics(
+        y, np.column_stack([np.cos(bank), np.sin(bank)]), problem.forces, 0.05, lam,
+        jacobians=False,
+    ).f  # fmt: skip
+    np.testing.assert_allclose(ours, flown, rtol=1e-13, atol=1e-15)
+
+
+def test_flat_model_is_paper_001_eq_1() -> None:
+    """Paper 001 eq. 1 written out: x' = v cos(theta), y' = v sin(theta), h' = v gamma,
+    v' = -B e v^2 (1 + lam^2) / (2 E*), gamma' = B v e lam cos(sigma) - 1/v + v,
+    theta' = B v e lam sin(sigma), with theta = 90 deg - psi and the bank's sign reversed."""
+    problem = build_problem(ProblemDocument.model_validate(_doc()))
+    y, _ = _states(5, seed=7)
+    lam, bank = np.array([0.3, 0.7, 1.0, 1.4, 2.0]), np.array([0.2, -0.4, 0.0, 0.9, -1.0])
+    f = lift_vector_dynamics(y, lift_controls(lam, bank), problem.forces, 0.0, "flat").f
+    big_b = 1.225 * 6378e3 * 0.4839 * 0.42324 / (2 * 907.0)
+    e_star = 0.42324 / 0.1292
+    h, v, gam, theta, sigma = (y[:, 0] - 1) * 6378e3, y[:, 3], y[:, 4], math.pi / 2 - y[:, 5], -bank
+    e = np.exp(-h / 7200.0)
+    np.testing.assert_allclose(f[:, 0], v * gam, rtol=1e-14)
+    np.testing.assert_allclose(f[:, 1], v * np.cos(theta), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(f[:, 2], v * np.sin(theta), rtol=1e-12, atol=1e-15)
+    # cd0 and k of the scenario are CD*/2 and CD*/(2 CL*^2) to 7 digits
+    np.testing.assert_allclose(f[:, 3], -big_b * e * v**2 * (1 + lam**2) / (2 * e_star), rtol=1e-6)
+    np.testing.assert_allclose(f[:, 4], big_b * v * e * lam * np.cos(sigma) - 1 / v + v, rtol=1e-6)
+    np.testing.assert_allclose(-f[:, 5], big_b * v * e * lam * np.sin(sigma), rtol=1e-6, atol=1e-15)
+
+
+def test_legs_and_intervals() -> None:
+    seg = Segments.sized(201, 20, [1.0, 3.0], 3)
+    assert seg.leg_count == 2 and seg.count == 20
+    assert list(seg.legs) == [0] * 5 + [1] * 15
+    assert seg.state_points == sum(seg.degrees) + 1
+    assert seg.joints.tolist() == [int(seg.first_state[5])]
+    np.testing.assert_allclose(seg.durations(np.array([10.0, 30.0])), [2.0] * 5 + [2.0] * 15)
+    one = Segments.sized(41, 1, [1.0], 0)
+    assert one.degrees == (40,) and one.joints.size == 0
+
+
+def test_integral_defects_vanish_on_polynomials() -> None:
+    """Each interval's state is a polynomial of its degree and f its exact derivative: the
+    integral-form defects are zero (the CGL integration matrix is exact)."""
+    seg = Segments.sized(31, 3, [1.0], 0)
+    T = np.array([0.7, 0.7, 0.7])
+    t_states, t_ctrl = seg.times(T), seg.control_times(T)
+    coeffs = np.random.default_rng(2).normal(size=(6, 11))  # degree 10 == the intervals'
+    y = np.column_stack([np.polynomial.polynomial.polyval(t_states, c) for c in coeffs])
+    f = np.column_stack(
+        [
+            np.polynomial.polynomial.polyval(t_ctrl, np.polynomial.polynomial.polyder(c))
+            for c in coeffs
+        ]
+    )
+    it = ChebIterate(y, np.zeros((seg.control_points, 3)), T)
+    assert np.max(np.abs(defects(seg, it, f))) < 1e-12 * np.max(np.abs(y))
+
+
+def test_lift_vector_path_flies_the_points_and_saturates() -> None:
+    seg = Segments.sized(11, 2, [1.0], 0)
+    lam = np.linspace(0.2, 1.8, seg.control_points)
+    bank = np.linspace(-0.5, 0.9, seg.control_points)
+    T = np.array([1.0, 1.0])
+    path = LiftVectorPath(seg, T, lift_controls(lam, bank), (-0.6, 0.6), (0.0, 1.5))
+    # the first interval's points before its end (at a joint the next interval flies)
+    got_bank, got_lam = path.at(seg.control_times(T)[:5])
+    np.testing.assert_allclose(got_bank, np.clip(bank[:5], -0.6, 0.6), atol=1e-12)
+    np.testing.assert_allclose(got_lam, np.clip(lam[:5], 0.0, 1.5), atol=1e-12)
+
+
+@pytest.mark.slow
+def test_the_cone_is_tight_at_the_optimum_and_the_answer_verified() -> None:
+    """cav-h-min-time converges with u3 = u1^2 + u2^2 at every point (the relaxation is lossless
+    there) to the reference's 2694.62 s within 0.3 %."""
+    from worker.solver.api import solve_problem
+
+    result = solve_problem(ProblemDocument.model_validate(_doc()))
+    assert result["status"] == "succeeded", result.get("failure")
+    assert abs(result["objective"]["value"] / 2694.6164 - 1.0) < 0.003
+    assert result["history"][-1]["relaxation_gap"] < 1e-6
+    terminal = result["verification"]["terminal_error_vs_target"]
+    assert abs(terminal["flight_path_angle_deg"]["error"]) < 0.1  # issue 18's acceptance
+    for key in ("longitude_deg", "latitude_deg"):  # 1 km is 0.009 deg of the flat map
+        assert abs(terminal[key]["error"]) < 0.009
+
+
+def test_path_rows_join_the_set_where_the_reference_nears_a_limit_and_stay() -> None:
+    problem = build_problem(ProblemDocument.model_validate(_doc(nodes=41, intervals=4)))
+    method = ChebScvx(
+        problem, ProblemDocument.model_validate(_doc(nodes=41, intervals=4)).method, "flat"
+    )  # type: ignore[arg-type]
+    ref = method.start()
+    lin = method.linearize(ref)
+    lin.path.g[:] = -1.0
+    lin.path.g[5, 2] = math.log(0.99)  # 1 % below the load-factor limit: within the 2 % margin
+    method.subproblem(ref, lin, 1)
+    assert method.path_set.sum() == 1 and method.path_set[5, 2]
+    lin.path.g[5, 2] = -1.0  # the next reference is far from it: the row stays
+    lin.path.g[7, 0] = 0.1  # and a violated heat rate joins
+    method.subproblem(ref, lin, 2)
+    assert method.path_set.sum() == 2 and method.path_set[5, 2] and method.path_set[7, 0]
+
+
+def _issues(doc: dict[str, Any]) -> dict[str, str]:
+    return {i.field: i.message for i in check_support(ProblemDocument.model_validate(doc))}
+
+
+def test_refusals_name_the_field() -> None:
+    doc = _doc()
+    doc["control_limits"] = {"bank_max_deg": 90, "bank_rate_max_deg_s": 5}
+    doc["terminal"]["heading_deg"] = {"kind": "soft", "value": 80, "weight": 1}
+    doc["energy"] = {"initial": 0.1, "final": 0.9}
+    issues = _issues(doc)
+    assert "linear cuts" in issues["control_limits.bank_max_deg"]
+    assert "control_limits.bank_rate_max_deg_s" in issues
+    assert "soft" in issues["terminal.heading_deg"]
+    assert "energy" in issues
+    rlv = copy.deepcopy(get_scenario("rlv-min-heat-load").problem)
+    rlv["method"] = {"name": "cheb-scvx"}
+    assert "parabolic polar" in _issues(rlv)["vehicle.aerodynamics"]
+    waypoints = _doc("cav-h-min-time-waypoints")
+    waypoints["terminal"]["longitude_deg"] = {"kind": "free"}
+    assert "target point" in _issues(waypoints)["waypoints"]
+
+
+def test_other_methods_refuse_the_flat_model() -> None:
+    doc = _doc()
+    doc["method"] = {"name": "hp-scp"}
+    assert "planet.model" in _issues(doc)
+
+
+def test_contract_checks_of_the_polar_and_flat_model() -> None:
+    polar_with_alpha = _doc()
+    polar_with_alpha["vehicle"]["angle_of_attack"] = {"mode": "constant", "alpha_deg": 10}
+    with pytest.raises(ValidationError, match="parabolic polar has no angle of attack"):
+        ProblemDocument.model_validate(polar_with_alpha)
+    table_without = copy.deepcopy(get_scenario("rlv-min-heat-load").problem)
+    del table_without["vehicle"]["angle_of_attack"]
+    with pytest.raises(ValidationError, match="need an angle-of-attack law"):
+        ProblemDocument.model_validate(table_without)
+    rotating = _doc()
+    rotating["planet"]["rotation"] = True
+    with pytest.raises(ValidationError, match="flat-Earth model has no rotation"):
+        ProblemDocument.model_validate(rotating)
+    sphere_zone = _doc()
+    sphere_zone["no_fly_zones"][0]["metric"] = "great_circle"
+    with pytest.raises(ValidationError, match="map distances"):
+        ProblemDocument.model_validate(sphere_zone)
+
+
+def test_an_unconverged_run_fails_with_its_history() -> None:
+    from worker.solver.api import solve_problem
+
+    result = solve_problem(ProblemDocument.model_validate(_doc(max_iterations=3)))
+    assert result["status"] == "failed"
+    assert result["failure"]["code"] == "max_iterations"
+    assert len(result["history"]) == 3
+    assert {"trust_radius", "path_rows", "leg_durations_s"} <= set(result["history"][-1]["extra"])
