@@ -22,6 +22,7 @@ import copy
 from typing import Any
 
 from app.schemas import ProblemDocument
+from bench.hp_table2 import timing_cells
 from worker.solver.api import solve_problem
 from worker.solver.scenarios import get_scenario
 
@@ -35,18 +36,10 @@ def scp_row(label: str, method: dict[str, Any]) -> dict[str, Any]:
     document = copy.deepcopy(get_scenario(SCENARIO).problem)
     document["method"] = {"name": "cheb-scvx", **method}
     result = solve_problem(ProblemDocument.model_validate(document))
-    timing = result["timing"]
     verification = result.get("verification") or {}
     terminal = verification.get("terminal_error_vs_target") or {}
     return {
-        "label": label,
-        "status": result["status"],
-        "iterations": timing.get("iterations"),
-        "optimization_s": timing.get("wall_s"),
-        "verification_s": timing.get("verification_s"),
-        "wall_over_conic": timing["wall_s"] / timing["conic_solve_s"]
-        if timing.get("conic_solve_s")
-        else None,
+        **timing_cells(label, result),
         "gamma_error_deg": (terminal.get("flight_path_angle_deg") or {}).get("error"),
         "tf_s": (result.get("objective") or {}).get("value"),
     }

@@ -37,12 +37,26 @@ TABLE2_ERRORS = {
 """Paper 003 Table 2's terminal errors of its method (the acceptance's bounds)."""
 
 
+def timing_cells(label: str, result: dict[str, Any]) -> dict[str, Any]:
+    """A solved result's row cells shared by the tables: label, status, iterations,
+    optimization and verification time, wall / sum of conic solve time."""
+    timing = result["timing"]
+    conic = timing.get("conic_solve_s")
+    return {
+        "label": label,
+        "status": result["status"],
+        "iterations": timing.get("iterations"),
+        "optimization_s": timing.get("wall_s"),
+        "verification_s": timing.get("verification_s"),
+        "wall_over_conic": timing["wall_s"] / conic if conic else None,
+    }
+
+
 def scp_row(label: str, method: dict[str, Any]) -> dict[str, Any]:
     """One SCP solve of the scenario with ``method`` options."""
     document = copy.deepcopy(get_scenario(SCENARIO).problem)
     document["method"] = {"name": "hp-scp", **method}
     result = solve_problem(ProblemDocument.model_validate(document))
-    timing = result["timing"]
     history = result.get("history") or [{}]
     verification = result.get("verification") or {}
     errors = {
@@ -51,15 +65,8 @@ def scp_row(label: str, method: dict[str, Any]) -> dict[str, Any]:
     }
     tf = (result.get("objective") or {}).get("value")
     return {
-        "label": label,
-        "status": result["status"],
+        **timing_cells(label, result),
         "points": history[-1].get("extra", {}).get("mesh_points"),
-        "iterations": timing.get("iterations"),
-        "optimization_s": timing.get("wall_s"),
-        "verification_s": timing.get("verification_s"),
-        "wall_over_conic": timing["wall_s"] / timing["conic_solve_s"]
-        if timing.get("conic_solve_s")
-        else None,
         "errors": errors,
         "tf_s": tf,
         "verified": bool(verification.get("feasible")),
