@@ -93,3 +93,20 @@ def test_succeeded_and_cancelled_results_are_left_alone() -> None:
         }
         explain(document, FOH)
         assert "advice" not in document["failure"] and document["failure"]["message"] == "m"
+
+
+def test_an_unspent_lift_relaxation_is_named_first() -> None:
+    """A lift-vector run whose cone is not tight (drag asked for without its lift) says so
+    before anything else; below the threshold, or for another method, nothing is said."""
+    from app.schemas.methods.cheb_scvx import ChebScvxOptions
+
+    cheb = ChebScvxOptions()
+    document = _failed("verification_failed", {}, history=[{"relaxation_gap": 4.0}])
+    document["method"] = "cheb-scvx"
+    tips = advice(document, cheb)
+    assert tips and tips[0].startswith("the relaxed lift cone is not tight (u3 exceeds")
+    document["history"] = [{"relaxation_gap": 1e-9}]
+    assert not any("lift cone" in tip for tip in advice(document, cheb))
+    document["history"] = [{"relaxation_gap": 4.0}]
+    document["method"] = "foh-ptr"
+    assert not any("lift cone" in tip for tip in advice(document, FOH))
