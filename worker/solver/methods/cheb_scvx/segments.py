@@ -185,16 +185,20 @@ class LiftVectorPath:
     bank_range: tuple[float, float] = (-math.pi, math.pi)
     lift_range: tuple[float, float] = (0.0, math.inf)
 
+    @property
+    def breaks(self) -> Array:
+        """Times where the intervals' polynomials meet (the path is smooth in between): the
+        verification restarts its integration there only."""
+        return np.cumsum(self.durations)[:-1]
+
     def _uv(self, t: Array, derivative: bool) -> tuple[Array, Array]:
         start = np.concatenate([[0.0], np.cumsum(self.durations)])
         flat = np.clip(np.asarray(t, dtype=float).reshape(-1), 0.0, start[-1])
         last = self.segments.count - 1
         which = np.clip(np.searchsorted(start[1:-1], flat, side="right"), 0, last)
         values = np.empty((flat.size, 2))
-        for s in range(self.segments.count):
+        for s in np.unique(which).tolist():  # one interval for the integrator's single times
             mask = which == s
-            if not np.any(mask):
-                continue
             u = self.u[self.segments.controls_of(s), :2]
             tau = np.clip(2.0 * (flat[mask] - start[s]) / self.durations[s] - 1.0, -1.0, 1.0)
             if derivative:
