@@ -26,7 +26,6 @@ from worker.solver.methods.base import MethodResult, RunHooks, run_method
 from worker.solver.methods.cheb_scvx.linearization import (
     ChebIterate,
     ChebLinearization,
-    between_states,
     linearize,
 )
 from worker.solver.methods.cheb_scvx.segments import LiftVectorPath, Segments
@@ -315,7 +314,8 @@ class ChebScvx:
         virtual = float(np.max(np.abs(x[self.cols.nu : self.cols.slack]), initial=0.0))
         change = np.max(np.abs(dy), axis=0)
         small = bool(np.all(change <= self.tol) and np.all(np.abs(dT) <= self.tol_t))
-        small = small and self.infeasibility(new, lin) <= FEASIBLE
+        infeasibility = self.infeasibility(new, lin)
+        small = small and infeasibility <= FEASIBLE
         u = new.u
         gap = float(np.max(u[:, 2] - u[:, 0] ** 2 - u[:, 1] ** 2))
         sc = self.problem.scales
@@ -336,7 +336,7 @@ class ChebScvx:
                 "trust_radius": self.radius,
                 "path_points": int(np.count_nonzero(self.path_set.any(axis=1))),
                 "path_rows": int(np.count_nonzero(self.path_set)),
-                "infeasibility": self.infeasibility(new, lin),
+                "infeasibility": infeasibility,
                 "leg_durations_s": [
                     float(np.sum(new.T[self.segments.leg_intervals(leg)])) * sc.time_s
                     for leg in range(self.segments.leg_count)
@@ -374,7 +374,7 @@ class ChebScvx:
         record.extra["ratio"] = ratio
         record.extra["predicted_decrease"] = predicted
         record.extra["actual_decrease"] = actual
-        if ratio < RATIO_REJECT and predicted > STATIONARY * scale:
+        if ratio < RATIO_REJECT:  # a stationary reference's ratio is 1: never rejected
             self.radius = max(self.radius / 2.0, RADIUS_MIN)
             record.extra["accepted"] = False
             return scp.Judgement(False)
@@ -475,11 +475,6 @@ class ChebScvx:
         if ref is None:
             return {}
         return self.term_values(ref, self.linearize(ref))
-
-
-def samples_of(method: ChebScvx, it: ChebIterate) -> Array:
-    """The reference between the points (for tests and plots)."""
-    return between_states(method.segments, it.y)
 
 
 def run(problem: EntryProblem, options: ChebScvxOptions, **hooks: Unpack[RunHooks]) -> MethodResult:

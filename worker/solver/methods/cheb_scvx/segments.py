@@ -142,6 +142,16 @@ class Segments:
             out.append((samples, interpolate(np.eye(n + 1), n, samples)))
         return out
 
+    @cached_property
+    def between_rows(self) -> list[tuple[Array, Array]]:
+        """Per between sample (segment-major), its segment's state points and interpolation
+        weights: the rows that give the samples from the points."""
+        out: list[tuple[Array, Array]] = []
+        for s, (_, w) in enumerate(self.between):
+            states = np.arange(self.state_points)[self.states_of(s)]
+            out.extend((states, row) for row in w)
+        return out
+
     def times(self, durations: Array) -> Array:
         """Time of every state point from the start, given the segments' durations."""
         start = np.concatenate([[0.0], np.cumsum(durations)])

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -130,6 +132,41 @@ def route_start(
     return ChebIterate(y, u, durations)
 
 
+def _floor_radius(problem: EntryProblem) -> float:
+    """Radius where a start's glide ends: the terminal altitude (a range's floor), else a share
+    of the initial altitude."""
+    spec = problem.terminal["altitude_m"]
+    if spec.kind == "range" and spec.lo is not None:
+        return float(spec.lo)
+    return _end_value(problem, "altitude_m", 1.0 + FREE_END_SHARE * (problem.y0[R] - 1.0))
+
+
+def _glide_events(
+    rhs: Callable[[float, Array], Array],
+    r_end: float,
+    point: tuple[float, float] | None,
+    model: PlanetModel,
+) -> list[Any]:
+    """Terminal events of a start's glide: down to ``r_end``, and the closest approach to
+    ``point`` (where the rate of the squared distance to it turns positive)."""
+
+    def floor(t: float, y: Array) -> float:
+        return float(y[R] - r_end)
+
+    floor.terminal = True  # type: ignore[attr-defined]
+    if point is None:
+        return [floor]
+
+    def closest(t: float, y: Array) -> float:
+        f = rhs(t, y)
+        factor = 1.0 if model == "flat" else math.cos(point[0]) ** 2
+        return float((y[PH] - point[0]) * f[PH] + factor * (y[TH] - point[1]) * f[TH])
+
+    closest.terminal = True  # type: ignore[attr-defined]
+    closest.direction = 1.0  # type: ignore[attr-defined]
+    return [floor, closest]
+
+
 def propagated_start(
     problem: EntryProblem,
     segments: Segments,
@@ -146,28 +183,7 @@ def propagated_start(
     def rhs(t: float, y: Array) -> Array:
         return lift_vector_dynamics(y[None, :], u_c, forces, omega, model, jacobians=False).f[0]
 
-    spec = problem.terminal["altitude_m"]
-    r_end = (
-        spec.lo
-        if spec.kind == "range" and spec.lo is not None
-        else _end_value(problem, "altitude_m", 1.0 + FREE_END_SHARE * (problem.y0[R] - 1.0))
-    )
-
-    def floor(t: float, y: Array) -> float:
-        return float(y[R] - r_end)
-
-    def closest(t: float, y: Array) -> float:
-        """The rate of the squared distance to the target (zero at the closest approach)."""
-        assert target is not None
-        f = rhs(t, y)
-        dlat, dlon = y[PH] - target[0], y[TH] - target[1]
-        factor = 1.0 if model == "flat" else math.cos(target[0]) ** 2
-        return float(dlat * f[PH] + factor * dlon * f[TH])
-
-    floor.terminal = True  # type: ignore[attr-defined]
-    closest.terminal = True  # type: ignore[attr-defined]
-    closest.direction = 1.0  # type: ignore[attr-defined]
-    events = [] if flight_time else [floor] + ([closest] if target is not None else [])
+    events = [] if flight_time else _glide_events(rhs, _floor_radius(problem), target, model)
     horizon = flight_time if flight_time is not None else 30.0
     sol = solve_ivp(rhs, (0.0, horizon), problem.y0, events=events or None,
                     dense_output=True, rtol=1e-8, atol=1e-10)  # fmt: skip
@@ -218,12 +234,7 @@ def guided_start(
     a dynamically consistent start through the waypoints, the legs' durations its times of
     arrival. None when the glide comes down before the last point."""
     forces, omega = problem.forces, problem.omega
-    spec = problem.terminal["altitude_m"]
-    r_end = (
-        spec.lo
-        if spec.kind == "range" and spec.lo is not None
-        else _end_value(problem, "altitude_m", 1.0 + FREE_END_SHARE * (problem.y0[R] - 1.0))
-    )
+    r_end = _floor_radius(problem)
 
     def bank_towards(y: Array, point: tuple[float, float]) -> float:
         error = (_course(y, point, model) - float(y[PS]) + math.pi) % (2.0 * math.pi) - math.pi
@@ -241,18 +252,8 @@ def guided_start(
             u = controls(y, point)
             return lift_vector_dynamics(y[None, :], u, forces, omega, model, jacobians=False).f[0]
 
-        def floor(t: float, y: Array) -> float:
-            return float(y[R] - r_end)
-
-        def closest(t: float, y: Array, point: tuple[float, float] = point) -> float:
-            f = rhs(t, y)
-            factor = 1.0 if model == "flat" else math.cos(point[0]) ** 2
-            return float((y[PH] - point[0]) * f[PH] + factor * (y[TH] - point[1]) * f[TH])
-
-        floor.terminal = True  # type: ignore[attr-defined]
-        closest.terminal = True  # type: ignore[attr-defined]
-        closest.direction = 1.0  # type: ignore[attr-defined]
-        sol = solve_ivp(rhs, (0.0, 30.0), y0, events=[floor, closest], dense_output=True,
+        events = _glide_events(rhs, r_end, point, model)
+        sol = solve_ivp(rhs, (0.0, 30.0), y0, events=events, dense_output=True,
                         rtol=1e-8, atol=1e-10, max_step=0.05)  # fmt: skip
         if sol.t_events[1].size == 0 or sol.t[-1] <= 0.0:
             return None

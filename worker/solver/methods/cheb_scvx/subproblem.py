@@ -277,7 +277,7 @@ def build(
         slack += pts.size
     # zones at the points and between them: (R - c - grad . d) / unit <= slack
     if lin.zones:
-        weights = _between_weights(segments)
+        weights = segments.between_rows
         for zone, zl, near in zip(problem.no_fly_zones, lin.zones, zone_rows_at, strict=True):
             m = near.size
             k = np.arange(m)
@@ -350,16 +350,6 @@ def build(
     diagonal[:cnu] = STEP_REGULARIZATION
     P = sp.diags(diagonal, format="csc")
     return ConeProblem(P, q, A, b, cones), cols
-
-
-def _between_weights(segments: Segments) -> list[tuple[Array, Array]]:
-    """Per between sample, its segment's state points and interpolation weights."""
-    out = []
-    for s, (_, w) in enumerate(segments.between):
-        states = np.arange(segments.state_points)[segments.states_of(s)]
-        for row in w:
-            out.append((states, row))
-    return out
 
 
 def _point_terms(
