@@ -110,3 +110,18 @@ def test_an_unspent_lift_relaxation_is_named_first() -> None:
     document["history"] = [{"relaxation_gap": 4.0}]
     document["method"] = "foh-ptr"
     assert not any("lift cone" in tip for tip in advice(document, FOH))
+
+
+def test_a_scheduled_vehicles_unused_lift_is_named_with_its_weight() -> None:
+    """For a vehicle on an angle-of-attack schedule the gap is lift left unused (not drag asked
+    for): the advice says so and names the option that prices it, with its value."""
+    from app.schemas.methods.cheb_scvx import ChebScvxOptions
+
+    cheb = ChebScvxOptions(weight_unused_lift=0.5)
+    history = [{"relaxation_gap": 0.43, "extra": {"lift_law": "schedule"}}]
+    document = _failed("verification_failed", {}, history=history)
+    document["method"] = "cheb-scvx"
+    tips = advice(document, cheb)
+    assert tips[0].startswith("the relaxed lift vector is not tight (|(u1, u2)|^2 falls short")
+    assert "method.weight_unused_lift (it was 0.5)" in tips[0]
+    assert not any("drag without its lift" in tip for tip in tips)

@@ -33,6 +33,7 @@ TOLERANCE = 0.003
 REQUIRED: frozenset[str] = frozenset(
     {
         "cheb-active-zone",
+        "cheb-case1",
         "cheb-cavh-min-time",
         "cheb-cavh-spherical",
         "cheb-cavh-waypoints",

@@ -60,13 +60,17 @@ RELAXATION_GAP = 1.0e-3
 """A lift-vector method's last relaxation gap above which the advice names it."""
 
 
-def _relaxation_gap(document: Mapping[str, Any]) -> float | None:
-    """The last iteration's relaxation gap of a lift-vector method when it is not spent."""
+def _relaxation_gap(document: Mapping[str, Any]) -> tuple[float, bool] | None:
+    """The last iteration's relaxation gap of a lift-vector method when it is not spent, and
+    whether the vehicle's angle of attack follows a schedule (the gap is then lift unused)."""
     history = document.get("history") or []
     if document.get("method") != "cheb-scvx" or not history:
         return None
     gap = history[-1].get("relaxation_gap")
-    return float(gap) if gap is not None and gap > RELAXATION_GAP else None
+    if gap is None or gap <= RELAXATION_GAP:
+        return None
+    scheduled = (history[-1].get("extra") or {}).get("lift_law") == "schedule"
+    return float(gap), scheduled
 
 
 def advice(document: Mapping[str, Any], options: ScpRunOptions) -> list[str]:
@@ -74,8 +78,17 @@ def advice(document: Mapping[str, Any], options: ScpRunOptions) -> list[str]:
     failure = document.get("failure") or {}
     code = failure.get("code")
     out: list[str] = []
-    gap = _relaxation_gap(document)
-    if gap is not None:
+    relaxed = _relaxation_gap(document)
+    if relaxed is not None and relaxed[1]:
+        weight = float(getattr(options, "weight_unused_lift", 0.0))
+        out.append(
+            f"the relaxed lift vector is not tight (|(u1, u2)|^2 falls short of 1 by "
+            f"{relaxed[0]:.3g}): the optimizer asks for less lift than the angle-of-attack "
+            f"schedule gives, which the vehicle cannot fly; raise method.weight_unused_lift "
+            f"(it was {weight:g}), give more nodes, or relax the bank-rate limit"
+        )
+    elif relaxed is not None:
+        gap = relaxed[0]
         out.append(
             f"the relaxed lift cone is not tight (u3 exceeds u1^2 + u2^2 by {gap:.3g}): the "
             "optimizer asks for drag without its lift, which no vehicle flies; the objective "

@@ -177,7 +177,9 @@ def _rhs(
     grid = traj.grid
     alpha_nodes = traj.alpha_deg
     by_energy = traj.grid_kind == "energy"
-    params = compiled_parameters(forces, omega) if alpha_nodes is None else None
+    # a continuous attitude path is flown as the method represents it, in Python
+    nodal = alpha_nodes is None and traj.attitude is None
+    params = compiled_parameters(forces, omega) if nodal else None
     if params is not None:
         if by_energy:
             kind = flown_rates.LINEAR_IN_ENERGY
@@ -198,13 +200,15 @@ def _rhs(
     attitude = traj.attitude
     if attitude is not None:  # bank and alpha as the method represents them between nodes
         at = np.zeros(1)
+        scheduled = forces.alpha_schedule is not None  # the schedule's alpha, not the path's
 
         def flown(t: float, y: Array) -> Array:
             poll()
             at[0] = t
             sigma, alpha = attitude.at(at)
             u[0, 0], u[0, 1] = math.cos(sigma[0]), math.sin(sigma[0])
-            return time_dynamics(y[None, :], u, forces, omega, alpha, jacobians=False).f[0]
+            alpha_arg = None if scheduled else alpha
+            return time_dynamics(y[None, :], u, forces, omega, alpha_arg, jacobians=False).f[0]
 
         if problem.planet_model == "flat":  # paper 001 eq. 1, the normalized lift in alpha's place
 
@@ -375,7 +379,7 @@ def verify(
     y_fine = sol.sol(t_fine).T
     s_fine = _energy(y_fine.T) if traj.grid_kind == "energy" else t_fine
     alpha = None
-    if traj.attitude is not None:
+    if traj.attitude is not None and problem.forces.alpha_schedule is None:
         alpha = traj.attitude.at(t_fine)[1]
     elif traj.alpha_deg is not None:
         alpha = np.interp(s_fine, traj.grid, traj.alpha_deg)

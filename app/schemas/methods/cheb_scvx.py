@@ -93,6 +93,16 @@ class ChebScvxOptions(ScpRunOptions):
         "cone u1^2 + u2^2 <= u3 tight where the objective is indifferent to the drag (a "
         "push-over at no lift); 0 = the paper's objective alone.",
     )
+    weight_unused_lift: float = Field(
+        0.3,
+        ge=0.0,
+        description="For a vehicle whose angle of attack follows a schedule (its lift vector "
+        "(cos sigma, sin sigma) times the schedule's lift, relaxed to the unit disc): the "
+        "weight of the lift share left unused, 1 - |(u1, u2)|, at each point in the "
+        "objective's unit (linearized along the reference's direction). It drives the "
+        "relaxation tight where the objective would rather fly less lift than the schedule "
+        "gives, which no vehicle can; 0 = the relaxation alone.",
+    )
     path_margin: float = Field(
         0.02,
         ge=0.0,

@@ -3,8 +3,10 @@
 Paper 001 (eqs. 8-10): with a parabolic polar CL = lam CL*, CD = cd0 + k CL^2 the equations of
 motion are affine in u, the lift's two components entering through u1 and u2 and the induced
 drag through u3; the nonconvex u3 = u1^2 + u2^2 is relaxed to u1^2 + u2^2 <= u3 (eq. 34) by the
-method. Two planet models, both on the state y = [r, theta, phi, V, gamma, psi] (nondimensional,
-heading clockwise from north):
+method. A vehicle whose angle of attack follows a schedule (any aerodynamic model) flies the same
+way with lam the share of the schedule's lift it uses (lam = 1 when flown): its lift and drag are
+those of the scheduled angle of attack and u3 moves nothing. Two planet models, both on the
+state y = [r, theta, phi, V, gamma, psi] (nondimensional, heading clockwise from north):
 
 - ``spherical``: the point-mass equations every method uses (``models.point_mass`` /
   ``models.eom``, rotation included), evaluated with the lam = 1 forces and u in the place of
@@ -43,12 +45,28 @@ class LiftVectorDerivatives:
     forces: ForceTerms
 
 
-def polar_of(forces: VehicleForces) -> ParabolicPolarAero:
-    """The vehicle's parabolic polar (TypeError for any other aerodynamic model)."""
+def polar_of(forces: VehicleForces) -> ParabolicPolarAero | None:
+    """The vehicle's parabolic polar, or None when its angle of attack follows a schedule
+    (TypeError for a vehicle with neither: an optimized angle of attack)."""
     aero = forces.aero
-    if not isinstance(aero, ParabolicPolarAero):
-        raise TypeError(f"the lift-vector model needs a parabolic polar, not {type(aero).__name__}")
-    return aero
+    if isinstance(aero, ParabolicPolarAero):
+        return aero
+    if forces.alpha_schedule is None:
+        raise TypeError(
+            f"the lift-vector model needs a parabolic polar or a scheduled angle of attack, not "
+            f"{type(aero).__name__} with an optimized one"
+        )
+    return None
+
+
+def lift_basis(forces: VehicleForces, n: int) -> tuple[Array | None, float]:
+    """What the force models are evaluated at for the lam = 1 forces, and the induced drag per
+    unit lift and unit u3: a polar's (ones in alpha's place, k CL*), a schedule's (None: the
+    schedule's alpha, 0: its drag does not depend on u)."""
+    polar = polar_of(forces)
+    if polar is None:
+        return None, 0.0
+    return np.ones(n), polar.k_induced * polar.cl_star
 
 
 def lift_vector_dynamics(
@@ -61,12 +79,10 @@ def lift_vector_dynamics(
     jacobians: bool = True,
 ) -> LiftVectorDerivatives:
     """dy/dt = f(y, u) for ``u`` (N, 3) = (u1, u2, u3), with A = df/dy and B = df/du."""
-    polar = polar_of(forces)
     n = y.shape[0]
-    ones = np.ones(n)
-    k_cl = polar.k_induced * polar.cl_star  # induced drag per unit lift and unit u3
+    basis, k_cl = lift_basis(forces, n)
     if model == "spherical":
-        td = time_dynamics(y, u[:, :2], forces, omega, ones, jacobians=jacobians)
+        td = time_dynamics(y, u[:, :2], forces, omega, basis, jacobians=jacobians)
         ft = td.forces
         excess = u[:, 2] - 1.0
         f = td.f.copy()
@@ -83,16 +99,16 @@ def lift_vector_dynamics(
         return LiftVectorDerivatives(f, A, B, ft)
     if model != "flat":
         raise ValueError(f"unknown planet model {model!r}; expected 'spherical' or 'flat'")
-    return _flat(y, u, forces, k_cl, jacobians)
+    return _flat(y, u, forces, basis, k_cl, jacobians)
 
 
 def _flat(
-    y: Array, u: Array, forces: VehicleForces, k_cl: float, jacobians: bool
+    y: Array, u: Array, forces: VehicleForces, basis: Array | None, k_cl: float, jacobians: bool
 ) -> LiftVectorDerivatives:
     """Paper 001 eq. 1 on this module's state (see the module docstring)."""
     r, v, ga, ps = y[:, R], y[:, V], y[:, GA], y[:, PS]
     u1, u2, u3 = u[:, 0], u[:, 1], u[:, 2]
-    ft = forces.terms(r, v, np.ones(y.shape[0]))
+    ft = forces.terms(r, v, basis)
     lift, drag = ft.lift, ft.drag + k_cl * ft.lift * (u3 - 1.0)
     sp, cp = np.sin(ps), np.cos(ps)
     f = np.empty((y.shape[0], 6), dtype=np.result_type(y, u, lift))

@@ -64,6 +64,7 @@ class ChebLinearization:
     heat_v: Array
     zones: list[ZoneLin]
     sample_y: Array  # (samples, 6) the reference between the points
+    bank_rate: Array  # d sigma/dt at the control points and between samples (per nd time)
 
 
 def defects(segments: Segments, it: ChebIterate, f: Array) -> Array:
@@ -84,6 +85,24 @@ def defects(segments: Segments, it: ChebIterate, f: Array) -> Array:
     return out
 
 
+def bank_rates(segments: Segments, u: Array, durations: Array) -> Array:
+    """The flown bank's rate d sigma/dt = (u1 u2' - u2 u1') / (u1^2 + u2^2) at every control
+    point and between sample (``Segments.rate_evaluation``, segment-major), the primes the
+    derivatives of each interval's interpolating polynomials (what the verification flies:
+    ``segments.LiftVectorPath``); per nondimensional time."""
+    parts = []
+    for s, (e, d) in enumerate(segments.rate_evaluation):
+        ctrl = segments.controls_of(s)
+        a, b = e @ u[ctrl, 0], e @ u[ctrl, 1]
+        rho = np.maximum(a * a + b * b, RHO_FLOOR)
+        parts.append((a * (d @ u[ctrl, 1]) - b * (d @ u[ctrl, 0])) / rho * (2.0 / durations[s]))
+    return np.concatenate(parts)
+
+
+RHO_FLOOR = 1.0e-6
+"""Smallest |(u1, u2)|^2 the bank's rate is divided by (the bank is undefined at no lift)."""
+
+
 def between_states(segments: Segments, y: Array) -> Array:
     """The interpolating polynomials' states at the between samples, segment-major."""
     parts = [w @ y[segments.states_of(s)] for s, (_, w) in enumerate(segments.between)]
@@ -94,15 +113,16 @@ def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, Array,
     """ln(p/p_max) of the active limits with partials in (r, V, u3), and the heat rate with its
     (r, V) partials, at states ``y`` and lift vectors ``u``. The load factor is flown at
     lam = sqrt(u3) (an upper bound on |(u1, u2)| under the relaxation: the row is conservative);
-    its u3 partial is taken in u3 itself, finite at lam = 0."""
+    its u3 partial is taken in u3 itself, finite at lam = 0. A scheduled vehicle's limits are
+    those of its schedule's full lift (u3 moves nothing)."""
     forces = problem.forces
     polar = polar_of(forces)
     r, v = y[:, R], y[:, V]
     u3 = np.maximum(u[:, 2], 0.0)
-    ft = forces.terms(r, v, np.sqrt(u3))
+    ft = forces.terms(r, v, None if polar is None else np.sqrt(u3))
     rows = log_path_rows(problem, r, v, ft)
     g_u3 = np.zeros_like(rows.g)
-    if "load_factor" in rows.names:
+    if polar is not None and "load_factor" in rows.names:
         cls2 = polar.cl_star * polar.cl_star
         cd = polar.cd0 + polar.k_induced * cls2 * u3
         g_u3[:, rows.names.index("load_factor")] = (
@@ -131,6 +151,12 @@ def linearize(
     for zone in problem.no_fly_zones:
         z = zone_distance(every[:, PH], every[:, TH], zone)
         zones.append(ZoneLin(z.c, z.c_lat, z.c_lon))
-    return ChebLinearization(
-        d.f, d.A, d.B, defects(segments, it, d.f), path, heat, heat_r, heat_v, zones, sample_y
+    rates = (
+        bank_rates(segments, it.u, it.T)
+        if problem.bank_rate_max is not None
+        else np.zeros(segments.rate_rows)
     )
+    return ChebLinearization(
+        d.f, d.A, d.B, defects(segments, it, d.f), path, heat, heat_r, heat_v, zones, sample_y,
+        rates,
+    )  # fmt: skip

@@ -96,6 +96,7 @@ class ChebScvx:
 
     def __init__(self, problem: EntryProblem, options: ChebScvxOptions, model: PlanetModel) -> None:
         self.problem, self.options, self.model = problem, options, model
+        self.lift_range = lift_range(problem)
         sc = problem.scales
         route = route_points(problem)
         self.route = route
@@ -123,6 +124,7 @@ class ChebScvx:
         self.tol_t = options.stop_tolerance.final_time_s / sc.time_s
         limits = len(active_limits(problem))
         self.path_set = np.zeros((self.segments.control_points, limits), dtype=bool)
+        self.rate_set = np.zeros(self.segments.rate_rows, dtype=bool)
         self.cols: Columns | None = None
         self.q: Array | None = None
         self.pending: _Pending | None = None
@@ -142,8 +144,7 @@ class ChebScvx:
     # -- set-up ------------------------------------------------------------------------
     def _setup(self) -> Setup:
         p, sc = self.problem, self.problem.scales
-        assert p.lift_range is not None, "a polar vehicle carries its normalized-lift range"
-        lam_min, lam_max = p.lift_range
+        lam_min, lam_max = self.lift_range
         terminal = []
         for j, key in POINT_MASS.terminal_states():
             t = p.terminal[key]
@@ -194,6 +195,8 @@ class ChebScvx:
             weight=self.options.weight_virtual_control,
             final_time=final,
             lift_weight=self.options.weight_induced_drag,
+            unused_lift_weight=self.options.weight_unused_lift,
+            bank_rate_max=p.bank_rate_max,
         )
 
     # -- driver hooks -------------------------------------------------------------------
@@ -224,6 +227,9 @@ class ChebScvx:
         """Problem P2 about the reference, the path rows at the (grown) violated set."""
         margin = math.log(1.0 - self.options.path_margin) if self.options.path_margin else 0.0
         self.path_set |= linearization.path.g > margin
+        if self.problem.bank_rate_max is not None:
+            near = (1.0 - self.options.path_margin) * self.problem.bank_rate_max
+            self.rate_set |= np.abs(linearization.bank_rate) > near
         self.ref_cost = self.penalized(reference, linearization)
         problem, self.cols = build(
             self.problem,
@@ -233,6 +239,7 @@ class ChebScvx:
             linearization,
             self.path_set,
             self.box * self.radius,
+            self.rate_set,
         )
         self.q = problem.q
         return problem
@@ -336,6 +343,7 @@ class ChebScvx:
                 "trust_radius": self.radius,
                 "path_points": int(np.count_nonzero(self.path_set.any(axis=1))),
                 "path_rows": int(np.count_nonzero(self.path_set)),
+                "bank_rate_points": int(np.count_nonzero(self.rate_set)),
                 "infeasibility": infeasibility,
                 "leg_durations_s": [
                     float(np.sum(new.T[self.segments.leg_intervals(leg)])) * sc.time_s
@@ -344,6 +352,7 @@ class ChebScvx:
                 "final_time_change_s": float(np.sum(dT)) * sc.time_s,
                 "second_order_correction": corrected,
                 "regularized_retry": self.retried,
+                **({} if self.problem.lift_range is not None else {"lift_law": "schedule"}),
             },
             **solver_fields(solution),
         )
@@ -392,10 +401,14 @@ class ChebScvx:
         """The objective in the subproblem's units on ``it``."""
         st = self.setup
         value = st.objective_time * float(np.sum(it.T))
-        if st.lift_weight:
+        fixed = st.lam2[0] == st.lam2[1]
+        if st.lift_weight and not fixed:
             for s in range(self.segments.count):
                 ctrl = self.segments.controls_of(s)
                 value += st.lift_weight * float(self.segments.quadrature(s) @ it.u[ctrl, 2])
+        if st.unused_lift_weight and fixed:
+            unused = 1.0 - np.hypot(it.u[:, 0], it.u[:, 1])
+            value += st.unused_lift_weight * float(np.sum(unused))
         for j, w in st.objective_state.items():
             value += w * float(it.y[-1, j])
         if st.objective_heat:
@@ -415,6 +428,10 @@ class ChebScvx:
         parts = [np.abs(lin.defects).ravel() / np.tile(self.units.y, lin.defects.shape[0])]
         if self.path_set.any():
             parts.append(np.maximum(lin.path.g[self.path_set], 0.0) / PATH_UNIT)
+        if self.rate_set.any():
+            assert self.problem.bank_rate_max is not None
+            share = np.abs(lin.bank_rate[self.rate_set]) / self.problem.bank_rate_max - 1.0
+            parts.append(np.maximum(share, 0.0) / PATH_UNIT)
         for zone, zl in zip(self.problem.no_fly_zones, lin.zones, strict=True):
             parts.append(np.maximum(zone.radius - zl.c, 0.0) / ZONE_UNIT)
         for w in self.setup.waypoints:
@@ -458,15 +475,16 @@ class ChebScvx:
     def trajectory(self, reference: ChebIterate) -> OptimizedTrajectory:
         """The state points as a time trajectory, bank and lam as the method represents them."""
         p = self.problem
-        assert p.lift_range is not None
         path = LiftVectorPath(
             self.segments, reference.T.copy(), reference.u.copy(),
-            (p.bank_min, p.bank_max), p.lift_range,
+            (p.bank_min, p.bank_max), self.lift_range,
         )  # fmt: skip
         t = self.segments.times(reference.T)
         bank, lam = path.at(t)
+        # a scheduled vehicle's angle of attack is its schedule's, which the result reads
+        alpha = lam if p.lift_range is not None else None
         return OptimizedTrajectory(
-            "time", t, reference.y.copy(), t, bank, alpha_deg=lam, attitude=path
+            "time", t, reference.y.copy(), t, bank, alpha_deg=alpha, attitude=path
         )
 
     def objective_terms(self, outcome: scp.ScpOutcome[ChebIterate]) -> dict[str, float]:
@@ -475,6 +493,12 @@ class ChebScvx:
         if ref is None:
             return {}
         return self.term_values(ref, self.linearize(ref))
+
+
+def lift_range(problem: EntryProblem) -> tuple[float, float]:
+    """The range of lam: a polar's normalized lift, or (1, 1) for a scheduled vehicle, whose lam
+    is the share of its schedule's lift flown (all of it)."""
+    return problem.lift_range if problem.lift_range is not None else (1.0, 1.0)
 
 
 def run(problem: EntryProblem, options: ChebScvxOptions, **hooks: Unpack[RunHooks]) -> MethodResult:

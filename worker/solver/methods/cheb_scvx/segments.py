@@ -143,6 +143,23 @@ class Segments:
         return out
 
     @cached_property
+    def rate_evaluation(self) -> list[tuple[Array, Array]]:
+        """Per segment, where its bank rate is checked: (E, F), each (n_s + 1 + samples,
+        n_s + 1), giving the control polynomial's values (E) and tau-derivatives (F) at the
+        points followed by the between samples from the values at the points."""
+        out = []
+        for s, (_, w) in enumerate(self.between):
+            d = self.differentiation(s)
+            eye = np.eye(d.shape[0])
+            out.append((np.vstack([eye, w]), np.vstack([d, w @ d])))
+        return out
+
+    @cached_property
+    def rate_rows(self) -> int:
+        """Number of places the bank rate is checked (points and between samples)."""
+        return sum(e.shape[0] for e, _ in self.rate_evaluation)
+
+    @cached_property
     def between_rows(self) -> list[tuple[Array, Array]]:
         """Per between sample (segment-major), its segment's state points and interpolation
         weights: the rows that give the samples from the points."""

@@ -16,7 +16,11 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
 from worker.solver.conic import ConeProblem, ConeSpec
-from worker.solver.methods.cheb_scvx.linearization import ChebIterate, ChebLinearization
+from worker.solver.methods.cheb_scvx.linearization import (
+    RHO_FLOOR,
+    ChebIterate,
+    ChebLinearization,
+)
 from worker.solver.methods.cheb_scvx.segments import Segments
 from worker.solver.models.point_mass import PH, TH, R, V
 from worker.solver.problem import EntryProblem
@@ -79,7 +83,9 @@ class Setup:
     objective_heat: float  # weight per (W/m^2 x nondimensional time)
     weight: float  # L1 penalty of the virtual control and the slacks
     final_time: tuple[float | None, float | None] = (None, None)  # min/max total, fixed: equal
-    lift_weight: float = 0.0  # per unit of the integral of u3 over tau
+    lift_weight: float = 0.0  # per unit of the integral of u3 over tau (a polar's)
+    unused_lift_weight: float = 0.0  # per point and unit of 1 - |(u1, u2)| (u3 fixed)
+    bank_rate_max: float | None = None  # rad per nondimensional time
 
 
 @dataclass
@@ -143,9 +149,11 @@ def build(
     lin: ChebLinearization,
     path_set: Array,
     trust: Array,
+    rate_set: Array | None = None,
 ) -> tuple[ConeProblem, Columns]:
-    """The subproblem about ``ref``; ``path_set`` (Q, m) marks the path rows to add and
-    ``trust`` (6 + 3 + 1,) holds the trust box's half-widths in scaled units."""
+    """The subproblem about ``ref``; ``path_set`` (Q, m) marks the path rows to add,
+    ``rate_set`` (``Segments.rate_rows``,) the places whose bank rate is bounded, and ``trust``
+    (6 + 3 + 1,) holds the trust box's half-widths in scaled units."""
     un = setup.units
     P, Q, S = segments.state_points, segments.control_points, segments.count
     # a zone's rows where the reference is within the trust box's reach of it (the rest
@@ -155,7 +163,12 @@ def build(
                     for z, zone in zip(lin.zones, problem.no_fly_zones, strict=True)]  # fmt: skip
     zone_rows = sum(near.size for near in zone_rows_at)
     pts, lims = np.nonzero(path_set)
-    n_slack = pts.size + zone_rows + len(setup.waypoints) + len(setup.terminal)
+    rate_pts = (
+        np.flatnonzero(rate_set)
+        if rate_set is not None and setup.bank_rate_max is not None
+        else np.zeros(0, dtype=np.int64)
+    )
+    n_slack = pts.size + 2 * rate_pts.size + zone_rows + len(setup.waypoints) + len(setup.terminal)
     cy, cu, ct = 0, 6 * P, 6 * P + 3 * Q
     cnu = ct + S
     cs = cnu + 12 * (P - 1)
@@ -247,11 +260,14 @@ def build(
     lo2, hi2 = setup.lam2
     u3 = ref.u[:, 2]
     iq = np.arange(Q)
-    nonneg.add(
-        np.concatenate([hi2 - u3, u3 - lo2]),
-        (iq, uc[:, 2], un.u[2]),
-        (iq + Q, uc[:, 2], -un.u[2]),
-    )
+    if lo2 == hi2:  # a fixed lift (a scheduled vehicle's): an equality, not a closed interval
+        zero.add((hi2 - u3) / un.u[2], (iq, uc[:, 2], 1.0))
+    else:
+        nonneg.add(
+            np.concatenate([hi2 - u3, u3 - lo2]),
+            (iq, uc[:, 2], un.u[2]),
+            (iq + Q, uc[:, 2], -un.u[2]),
+        )
     tan_lo, tan_hi = setup.tan_bank
     u1, u2 = ref.u[:, 0], ref.u[:, 1]
     nonneg.add(
@@ -275,6 +291,11 @@ def build(
             (k, slack + k, -1.0),
         )
         slack += pts.size
+    # bank-rate rows where the reference nears the limit: +-w / (r T / 2) - 1 - dT / T <= slack
+    if rate_pts.size:
+        assert setup.bank_rate_max is not None
+        slack = _bank_rate_rows(nonneg, segments, ref, rate_pts, setup.bank_rate_max, uc, ct,
+                                un, slack)  # fmt: skip
     # zones at the points and between them: (R - c - grad . d) / unit <= slack
     if lin.zones:
         weights = segments.between_rows
@@ -328,10 +349,20 @@ def build(
         soc_dims.append(4)
     # the induced-drag share u3 weighed lightly: where the objective is indifferent to it (a
     # push-over at no lift) the relaxed cone is made tight instead of left slack
-    if setup.lift_weight:
+    if setup.lift_weight and lo2 != hi2:
         for s in range(S):
             ctrl = np.arange(Q)[segments.controls_of(s)]
             q[uc[ctrl, 2]] += setup.lift_weight * segments.quadrature(s) * un.u[2]
+    # with u3 fixed (a scheduled vehicle) the lift share left unused, 1 - |(u1, u2)|, at each
+    # point, linearized along the reference's direction (a concave term's tangent: the model
+    # bounds it from above); at a reference with no lift, along u1
+    if setup.unused_lift_weight and lo2 == hi2:
+        norm = np.hypot(u1, u2)
+        safe = np.maximum(norm, 1e-300)
+        along = np.where(norm > 0.0, u1 / safe, 1.0)
+        across = np.where(norm > 0.0, u2 / safe, 0.0)
+        q[uc[:, 0]] -= setup.unused_lift_weight * along * un.u[0]
+        q[uc[:, 1]] -= setup.unused_lift_weight * across * un.u[1]
     # objective: time, last-point states, heat load (Clenshaw-Curtis quadrature)
     q[ct : ct + S] += setup.objective_time * un.t
     for j, wgt in setup.objective_state.items():
@@ -350,6 +381,53 @@ def build(
     diagonal[:cnu] = STEP_REGULARIZATION
     P = sp.diags(diagonal, format="csc")
     return ConeProblem(P, q, A, b, cones), cols
+
+
+def _bank_rate_rows(
+    nonneg: _Rows,
+    segments: Segments,
+    ref: ChebIterate,
+    places: Array,
+    rate_max: float,
+    uc: Array,
+    ct: int,
+    un: Units,
+    slack: int,
+) -> int:
+    """|d sigma/dt| <= rate_max at ``places`` (indices into ``Segments.rate_evaluation``'s
+    rows: points and between samples), linearized in the interval's lift vector and duration:
+    with a = E u1, b = E u2, a' = F u1, b' = F u2 (E, F the places' value and tau-derivative
+    rows), rho = a^2 + b^2 and w = (a b' - b a') / rho the rate is 2 w / T, and
+    dw/du1 = (b' E - b F) / rho - 2 w a E / rho, dw/du2 = (a F - a' E) / rho - 2 w b E / rho.
+    Two rows per place (either sign), one slack each in units of 1 % of the limit."""
+    sizes = [e.shape[0] for e, _ in segments.rate_evaluation]
+    first = np.concatenate([[0], np.cumsum(sizes)])
+    seg_of = np.repeat(np.arange(segments.count), sizes)
+    row = 0
+    for s in np.unique(seg_of[places]).tolist():
+        ctrl = np.arange(uc.shape[0])[segments.controls_of(s)]
+        local = places[seg_of[places] == s] - first[s]
+        e_all, f_all = segments.rate_evaluation[s]
+        e, f = e_all[local], f_all[local]
+        u1, u2 = ref.u[ctrl, 0], ref.u[ctrl, 1]
+        a, b, da, db = e @ u1, e @ u2, f @ u1, f @ u2
+        rho = np.maximum(a * a + b * b, RHO_FLOOR)
+        w = (a * db - b * da) / rho
+        w_1 = (db[:, None] * e - b[:, None] * f - (2.0 * w * a)[:, None] * e) / rho[:, None]
+        w_2 = (a[:, None] * f - da[:, None] * e - (2.0 * w * b)[:, None] * e) / rho[:, None]
+        half = 0.5 * rate_max * ref.T[s]
+        m = local.size
+        k = np.arange(m)
+        for sign in (1.0, -1.0):
+            nonneg.add(
+                -(sign * w / half - 1.0) / PATH_UNIT,
+                (k[:, None], uc[ctrl, 0][None, :], sign * w_1 * un.u[0] / half / PATH_UNIT),
+                (k[:, None], uc[ctrl, 1][None, :], sign * w_2 * un.u[1] / half / PATH_UNIT),
+                (k, ct + s, -un.t / ref.T[s] / PATH_UNIT),
+                (k, slack + row + k, -1.0),
+            )
+            row += m
+    return slack + row
 
 
 def _point_terms(

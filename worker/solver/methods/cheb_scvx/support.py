@@ -13,12 +13,17 @@ OBJECTIVES = ("min_time", "max_terminal_velocity", "min_heat_load", *FINAL_EXTRE
 def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     """Features the method cannot express."""
     out: list[FieldIssue] = []
-    if doc.vehicle.aerodynamics.model != "parabolic_polar":
+    alpha = doc.vehicle.angle_of_attack
+    if doc.vehicle.aerodynamics.model != "parabolic_polar" and (
+        alpha is not None and alpha.mode == "optimized"
+    ):
         out.append(
             issue(
-                "vehicle.aerodynamics",
+                "vehicle.angle_of_attack.mode",
                 f"{NAME} flies the lift vector (lambda cos sigma, lambda sin sigma, lambda^2) of "
-                'a parabolic polar; give {"model": "parabolic_polar", ...}',
+                "a parabolic polar, or the bank of a vehicle whose angle of attack follows a "
+                'schedule; give {"model": "parabolic_polar", ...} aerodynamics or a '
+                "velocity_schedule, table or constant angle of attack",
             )
         )
     limits = doc.control_limits
@@ -28,13 +33,6 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
                 "control_limits.bank_max_deg",
                 f"{NAME} bounds the bank by linear cuts u2 <= tan(sigma_max) u1 (paper 001 eq. "
                 "41), which need the bank range inside (-90, 90) deg",
-            )
-        )
-    if limits.bank_rate_max_deg_s is not None:
-        out.append(
-            issue(
-                "control_limits.bank_rate_max_deg_s",
-                f"{NAME} has the lift vector as its control and no bank-rate limit; leave it out",
             )
         )
     if limits.alpha_rate_max_deg_s is not None:
@@ -49,11 +47,12 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
             issue("initial_state.bank_deg", f"{NAME} leaves the initial bank free; leave it out")
         )
     hr = doc.path_constraints.heat_rate
-    if hr is not None and hr.alpha_polynomial:
+    polar = doc.vehicle.aerodynamics.model == "parabolic_polar"
+    if hr is not None and hr.alpha_polynomial and polar:
         out.append(
             issue(
                 "path_constraints.heat_rate.alpha_polynomial",
-                f"{NAME}'s vehicle has no angle of attack for a heating factor",
+                f"{NAME}'s polar vehicle has no angle of attack for a heating factor",
             )
         )
     for key in ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s",
