@@ -309,3 +309,21 @@ def test_every_reported_time_counts_from_the_problems_initial_time() -> None:
     for peak in peaks:
         assert times[0] <= peak["at_time_s"] <= times[-1]
         assert peak["at_time_s"] in times  # the peak's own row of the flown path
+
+
+@pytest.mark.slow
+def test_a_problem_without_a_heat_rate_limit_is_verified_and_kept() -> None:
+    """No heating model: the propagated flight has no heat-rate column and its other peaks are
+    kept (a KeyError once turned this into an unexpected error)."""
+    from app.schemas import ProblemDocument
+    from worker.solver.api import solve_problem
+    from worker.solver.scenarios import get_scenario
+
+    document = copy.deepcopy(get_scenario("rlv-max-terminal-velocity").problem)
+    del document["path_constraints"]["heat_rate"]
+    result = solve_problem(ProblemDocument.model_validate(document))
+    assert result["status"] == "succeeded", result.get("failure")
+    flown = result["verification"]["propagated"]
+    assert "heat_rate_W_m2" not in flown and "heat_rate_W_m2" not in result["trajectory"]
+    peak = result["verification"]["path_maxima"]["dynamic_pressure_Pa"]
+    assert max(flown["dynamic_pressure_Pa"]) == peak["max"]

@@ -535,7 +535,8 @@ def propagated_columns(
         "load_factor_g": pv.load_factor,
     }
     present = {k: np.asarray(v, dtype=float) for k, v in columns.items() if v is not None}
-    peaks = [present[k] for k in ("heat_rate_W_m2", "dynamic_pressure_Pa", "load_factor_g")]
+    path_keys = ("heat_rate_W_m2", "dynamic_pressure_Pa", "load_factor_g")
+    peaks = [present[k] for k in path_keys if k in present]  # no heat rate without its model
     peaks.append(np.abs(bank))
     if problem.bank_rate_max is not None:  # the flown bank rate's peak (control_limits)
         peaks.append(np.abs(bank_rate_at(traj, t_fine, bank_rad)))
