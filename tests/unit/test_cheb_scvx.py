@@ -201,7 +201,7 @@ def test_refusals_name_the_field() -> None:
     assert "energy" in issues
     optimized = copy.deepcopy(get_scenario("rlv-min-time-hp").problem)
     optimized["method"] = {"name": "cheb-scvx"}
-    assert "schedule" in _issues(optimized)["vehicle.angle_of_attack.mode"]
+    assert "no rate" in _issues(optimized)["vehicle.angle_of_attack.rate_max_deg_s"]
     scheduled = copy.deepcopy(get_scenario("rlv-max-terminal-velocity").problem)
     scheduled["method"] = {"name": "cheb-scvx"}
     assert _issues(scheduled) == {}  # paper 002 case 1 as built in: bank-rate limit included
@@ -363,3 +363,116 @@ def test_case1_one_vehicle_two_methods_one_answer() -> None:
         ours = np.interp(tf_[inside], tc, np.array(cheb["trajectory"][key]))
         theirs = np.array(foh["trajectory"][key])[inside]
         assert np.max(np.abs(ours - theirs)) < bound, key
+
+
+SHUTTLE_CL, SHUTTLE_CD = [-0.20704, 0.029244], [0.07854, -0.61592e-2, 0.621408e-3]
+
+
+def _table_aero() -> Any:
+    from worker.solver.aero_tables import TableAero
+
+    alpha = np.linspace(0.0, 40.0, 9)
+    mach = np.array([2.0, 5.0, 10.0, 20.0])
+    cl = (0.02 + 0.03 * alpha[:, None]) * (1.0 + 0.5 / mach[None, :])
+    cd = (0.05 + 0.0008 * alpha[:, None] ** 2) * (1.0 + 0.3 / mach[None, :])
+    return TableAero(alpha, mach, cl, cd, "cubic")
+
+
+def test_a_lift_share_inverts_cl_and_its_partials_are_the_models() -> None:
+    """alpha(lam, M) reproduces CL = lam CL(alpha_max, M) to 1e-12 (safeguarded Newton to
+    round-off), on a Mach-free polynomial and a Mach-dependent cubic table; the lam and Mach
+    partials of CL and CD match central differences (step 1e-6, rtol 1e-5: the differences'
+    truncation and the spline's round-off)."""
+    from worker.solver.aero_models import LiftShareAero, PolynomialAero
+
+    for base, lo, hi in (
+        (PolynomialAero(SHUTTLE_CL, SHUTTLE_CD, "alpha"), 0.0, 89.0),
+        (_table_aero(), 0.0, 40.0),
+    ):
+        share = LiftShareAero.checked(base, lo, hi, [6.0, 3.0, 12.0])
+        lam = np.array([0.05, 0.2, 0.5, 0.9, 1.0])
+        mach = np.array([3.0, 6.0, 9.0, 12.0, 15.0])
+        alpha = share.alpha_of(lam, mach)
+        ref = base.coefficients(np.full(5, hi), mach).cl
+        np.testing.assert_allclose(base.coefficients(alpha, mach).cl, lam * ref, rtol=0, atol=1e-12)
+        lam = np.array([0.05, 0.2, 0.5, 0.9, 0.99])  # differences inside the bounds
+        c = share.coefficients(lam, mach)
+        h = 1e-6
+        for field, d_lam, d_mach in (
+            ("cl", "dcl_dalpha", "dcl_dmach"),
+            ("cd", "dcd_dalpha", "dcd_dmach"),
+        ):
+            up, down = share.coefficients(lam + h, mach), share.coefficients(lam - h, mach)
+            fd = (getattr(up, field) - getattr(down, field)) / (2 * h)
+            np.testing.assert_allclose(getattr(c, d_lam), fd, rtol=1e-5, atol=1e-9)
+            up, down = share.coefficients(lam, mach + h), share.coefficients(lam, mach - h)
+            fd = (getattr(up, field) - getattr(down, field)) / (2 * h)
+            np.testing.assert_allclose(getattr(c, d_mach), fd, rtol=1e-5, atol=1e-9)
+
+
+def test_a_lift_share_is_checked_and_knows_its_range_and_best_glide() -> None:
+    """Shuttle polynomial over [0, 89] deg: CL(0) < 0, so the smallest share is 0; the best
+    lift-to-drag share is that of alpha* = sqrt(d0 / d2 + ...) found on the grid (within its
+    1/8 deg spacing). A CL that falls with alpha inside the bounds is refused."""
+    from worker.solver.aero_models import LiftShareAero, PolynomialAero
+
+    base = PolynomialAero(SHUTTLE_CL, SHUTTLE_CD, "alpha")
+    share = LiftShareAero.checked(base, 0.0, 89.0, [6.0])
+    assert share.min_share == 0.0
+    grid = np.linspace(0.0, 89.0, 100_001)
+    c = base.coefficients(grid, np.zeros_like(grid))
+    best = grid[np.argmax(np.where(c.cl > 0, c.cl / c.cd, -1))]
+    alpha_best = share.alpha_of(np.array([share.best_share]), np.array([6.0]))[0]
+    assert abs(alpha_best - best) < 0.125
+    above = LiftShareAero.checked(base, 10.0, 89.0, [6.0])
+    cl = base.coefficients(np.array([10.0, 89.0]), np.zeros(2)).cl
+    assert above.min_share == pytest.approx(cl[0] / cl[1], rel=1e-8)  # read 1e-9 deg inside
+    x33 = PolynomialAero([-0.041065, 0.016292, 0.0002602], [0.080505, -0.03026, 0.86495], "cl")
+    with pytest.raises(ValueError, match="CL must increase with alpha"):
+        LiftShareAero.checked(x33, -60.0, 40.0, [6.0])
+
+
+def test_lift_share_dynamics_jacobians_match_differences() -> None:
+    """The lift-share law's A and B (drag through alpha(sqrt(u3), M)) against central
+    differences (step 1e-7 of the nondimensional states and controls, rtol 1e-5)."""
+    from worker.solver.methods.cheb_scvx.lift_share import share_problem
+
+    problem = share_problem(build_problem(ProblemDocument.model_validate(_shuttle())))
+    y, _ = _states(6, seed=11)
+    y[:, 3] = np.linspace(0.3, 0.95, 6)
+    u = lift_controls(np.linspace(0.1, 0.6, 6), np.linspace(-1.2, 0.0, 6))
+    for model in ("spherical", "flat"):
+        d = lift_vector_dynamics(y, u, problem.forces, 0.0, model)  # type: ignore[arg-type]
+        assert d.A is not None and d.B is not None
+        h = 1e-7
+        for j in range(6):
+            e = np.zeros(6)
+            e[j] = h
+            up = lift_vector_dynamics(y + e, u, problem.forces, 0.0, model, jacobians=False).f  # type: ignore[arg-type]
+            dn = lift_vector_dynamics(y - e, u, problem.forces, 0.0, model, jacobians=False).f  # type: ignore[arg-type]
+            np.testing.assert_allclose(d.A[:, :, j], (up - dn) / (2 * h), rtol=1e-5, atol=1e-7)
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = h
+            up = lift_vector_dynamics(y, u + e, problem.forces, 0.0, model, jacobians=False).f  # type: ignore[arg-type]
+            dn = lift_vector_dynamics(y, u - e, problem.forces, 0.0, model, jacobians=False).f  # type: ignore[arg-type]
+            np.testing.assert_allclose(d.B[:, :, j], (up - dn) / (2 * h), rtol=1e-5, atol=1e-7)
+
+
+def _shuttle() -> dict[str, Any]:
+    return copy.deepcopy(get_scenario("shuttle-max-crossrange").problem)
+
+
+def test_an_optimized_angle_of_attacks_refusals_name_the_field() -> None:
+    doc = _shuttle()
+    doc["vehicle"]["angle_of_attack"].update(rate_max_deg_s=2.0, initial_deg=20.0)
+    doc["path_constraints"] = {
+        "heat_rate": {"max_W_m2": 8e5, "k_q": 1e-4, "alpha_polynomial": [1, 0.01]}
+    }
+    issues = _issues(doc)
+    assert "rate" in issues["vehicle.angle_of_attack.rate_max_deg_s"]
+    assert "initial" in issues["vehicle.angle_of_attack.initial_deg"]
+    assert "heating factor" in issues["path_constraints.heat_rate.alpha_polynomial"]
+    falling = _shuttle()
+    falling["vehicle"]["aerodynamics"]["cl_coefficients"] = [0.5, -0.001]
+    assert "CL must increase" in _issues(falling)["vehicle.angle_of_attack"]

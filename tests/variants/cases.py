@@ -37,6 +37,7 @@ REQUIRED: frozenset[str] = frozenset(
         "cheb-cavh-min-time",
         "cheb-cavh-spherical",
         "cheb-cavh-waypoints",
+        "cheb-shuttle-max-crossrange",
         "energy-hard-terminal",
         "energy-heat-rate-800",
         "energy-max-final-latitude",

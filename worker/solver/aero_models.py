@@ -125,3 +125,116 @@ class ParabolicPolarAero:
         cl, cd, dcl, dcd = self.polar(lam)
         zero = np.zeros(shape)
         return AeroCoefficients(cl, cd, dcl, dcd, zero, zero.copy())
+
+
+END_NUDGE_DEG = 1.0e-9
+"""How far inside its bounds a lift share reads CL's slope at the bounds."""
+LIFT_SHARE_NEWTON_STEPS = 60
+"""Safeguarded Newton steps of the inversion of CL(alpha, M) (each halves the bracket at least
+when Newton leaves it: 60 reach round-off on any bracket of degrees)."""
+
+
+@dataclass(frozen=True)
+class LiftShareAero:
+    """An angle-of-attack vehicle flown by its lift share lam = CL(alpha, M) / CL(alpha_max, M):
+    paper 001's normalized lift for any CL, CD model, alpha derived from lam by inverting CL at
+    the Mach number (CL must increase with alpha over the bounds). ``coefficients`` takes lam in
+    the angle of attack's place, as ``ParabolicPolarAero`` does, with the lam partials in the
+    ``*_dalpha`` fields; lam = 1 is alpha_max, and beyond the bounds alpha is extrapolated along
+    CL's end slope."""
+
+    base: AeroModel
+    alpha_min_deg: float
+    alpha_max_deg: float
+    best_share: float = 1.0
+    """The lam of the best lift-to-drag ratio (at the Mach number it was found for)."""
+    min_share: float = 0.0
+    """The smallest lam that keeps alpha >= alpha_min at every Mach number checked, and >= 0."""
+
+    @staticmethod
+    def checked(
+        base: AeroModel, alpha_min_deg: float, alpha_max_deg: float, machs: Sequence[float]
+    ) -> LiftShareAero:
+        """The lift share of ``base`` over [alpha_min, alpha_max], its best lift-to-drag share
+        found at ``machs[0]``, its smallest share the largest CL(alpha_min, M) / CL(alpha_max,
+        M) over ``machs`` (ValueError where CL does not increase with alpha over the bounds or
+        CL(alpha_max, M) is not positive: alpha could not be derived from lam)."""
+        grid = np.linspace(alpha_min_deg, alpha_max_deg, 721)
+        grid[[0, -1]] += (END_NUDGE_DEG, -END_NUDGE_DEG)  # a table's own edge: its inner slope
+        shares = []
+        for mach in machs:
+            c = base.coefficients(grid, np.full(grid.shape, float(mach)))
+            if np.any(c.dcl_dalpha <= 0.0) or c.cl[-1] <= 0.0:
+                bad = grid[int(np.argmin(c.dcl_dalpha))]
+                raise ValueError(
+                    f"CL must increase with alpha over [{alpha_min_deg}, {alpha_max_deg}] deg and "
+                    f"be positive at the upper bound to derive alpha from the normalized lift; "
+                    f"at Mach {mach:g} it does not (alpha {bad:.3g} deg, CL at the bound "
+                    f"{c.cl[-1]:.4g})"
+                )
+            shares.append(float(c.cl[0] / c.cl[-1]))
+        c0 = base.coefficients(grid, np.full(grid.shape, float(machs[0])))
+        ratio = np.where(c0.cl > 0.0, c0.cl / np.maximum(c0.cd, 1e-300), -np.inf)
+        best = float(c0.cl[int(np.argmax(ratio))] / c0.cl[-1])
+        return LiftShareAero(base, alpha_min_deg, alpha_max_deg, best, max(0.0, *shares))
+
+    def reference(self, mach: Array) -> tuple[Array, Array]:
+        """CL(alpha_max, M) and its Mach partial: the lift of lam = 1."""
+        c = self.base.coefficients(np.full(np.shape(mach), self.alpha_max_deg), mach)
+        return c.cl, c.dcl_dmach
+
+    def alpha_of(self, lam: npt.ArrayLike, mach: npt.ArrayLike) -> Array:
+        """The angle of attack (deg) whose CL is lam CL(alpha_max, M), by bisection-safeguarded
+        Newton on [alpha_min, alpha_max]; outside it, the end slope's extrapolation."""
+        lam_a, mach_a = np.broadcast_arrays(
+            np.asarray(lam, dtype=float), np.asarray(mach, dtype=float)
+        )
+        ref, _ = self.reference(mach_a)
+        target = lam_a * ref
+        lo = np.full(lam_a.shape, self.alpha_min_deg)
+        hi = np.full(lam_a.shape, self.alpha_max_deg)
+        c_lo = self.base.coefficients(lo, mach_a)
+        below = target < c_lo.cl
+        above = target > ref
+        a = np.clip(lo + (target - c_lo.cl) / np.maximum(ref - c_lo.cl, 1e-300) * (hi - lo), lo, hi)
+        for _ in range(LIFT_SHARE_NEWTON_STEPS):
+            c = self.base.coefficients(a, mach_a)
+            miss = c.cl - target
+            hi = np.where(miss > 0.0, a, hi)
+            lo = np.where(miss <= 0.0, a, lo)
+            step = a - miss / np.where(c.dcl_dalpha > 0.0, c.dcl_dalpha, np.inf)
+            inside = (step > lo) & (step < hi)
+            a = np.where(inside, step, 0.5 * (lo + hi))
+        slope_lo, slope_hi = self._end_slopes(mach_a)
+        a = np.where(below, self.alpha_min_deg + (target - c_lo.cl) / slope_lo, a)
+        return np.where(above, self.alpha_max_deg + (target - ref) / slope_hi, a)
+
+    def _end_slopes(self, mach: Array) -> tuple[Array, Array]:
+        """dCL/dalpha just inside each bound (a table's own edge has no slope outwards)."""
+        lo = self.base.coefficients(np.full(mach.shape, self.alpha_min_deg + END_NUDGE_DEG), mach)
+        hi = self.base.coefficients(np.full(mach.shape, self.alpha_max_deg - END_NUDGE_DEG), mach)
+        return lo.dcl_dalpha, hi.dcl_dalpha
+
+    def coefficients(self, alpha_deg: npt.ArrayLike, mach: npt.ArrayLike) -> AeroCoefficients:
+        """CL = lam CL_ref(M), CD(alpha(lam, M), M) and their lam and Mach partials at lift share
+        ``alpha_deg`` (lam, see the class): d alpha/d lam = CL_ref / CL_alpha and
+        d alpha/dM = (lam CL_ref' - CL_M) / CL_alpha from CL(alpha, M) = lam CL_ref(M)."""
+        shape = np.broadcast_shapes(np.shape(alpha_deg), np.shape(mach))
+        lam = np.broadcast_to(np.asarray(alpha_deg, dtype=float), shape)
+        mach_a = np.broadcast_to(np.asarray(mach, dtype=float), shape)
+        alpha = self.alpha_of(lam, mach_a)
+        ref, ref_m = self.reference(mach_a)
+        c = self.base.coefficients(alpha, mach_a)
+        slope_lo, slope_hi = self._end_slopes(mach_a)  # beyond the bounds: the extrapolation's
+        slope = np.where(alpha > self.alpha_max_deg, slope_hi, c.dcl_dalpha)
+        slope = np.where(alpha < self.alpha_min_deg, slope_lo, slope)
+        a_lam = ref / slope
+        a_mach = (lam * ref_m - c.dcl_dmach) / slope
+        return AeroCoefficients(
+            cl=lam * ref,
+            cd=c.cd,
+            dcl_dalpha=ref,
+            dcd_dalpha=c.dcd_dalpha * a_lam,
+            dcl_dmach=lam * ref_m,
+            dcd_dmach=c.dcd_dalpha * a_mach + c.dcd_dmach,
+        )

@@ -158,6 +158,8 @@ class TableAero:
         else:
             raise ValueError(f"interpolation must be 'linear' or 'cubic', got {interpolation!r}")
         self.interpolation = interpolation
+        self.alpha_grid_deg = alpha_arr
+        self.mach_grid = mach_arr
 
     def coefficients(self, alpha_deg: npt.ArrayLike, mach: npt.ArrayLike) -> AeroCoefficients:
         """Interpolated CL, CD and their partials (zero in an input that lies off the table)."""

@@ -15,9 +15,10 @@ METHOD = MethodInfo(
         "Chebyshev-Gauss-Lobatto collocation, one polynomial per segment between waypoints",
         "lift vector u = (lambda cos sigma, lambda sin sigma, lambda^2) as control, relaxed "
         "cone u1^2 + u2^2 <= u3 with the bank range as linear cuts",
-        "parabolic-polar vehicles (normalized lift lambda in its range), or any aerodynamic "
-        "model with a scheduled angle of attack (the lift vector's length the share of the "
-        "schedule's lift flown, priced to 1)",
+        "parabolic-polar vehicles (normalized lift lambda in its range); any aerodynamic model "
+        "with an optimized angle of attack, alpha derived from the lift share lambda = "
+        "CL(alpha, M) / CL(alpha_max, M); or with a scheduled angle of attack (the lift "
+        "vector's length the share of the schedule's lift flown, priced to 1)",
         "bank-rate limit at the points and between them",
         "spherical (rotating or not) or flat-Earth (paper 001 eq. 1) planet model",
         "path limits (heat rate, dynamic pressure, load factor) added where the reference nears "

@@ -12,7 +12,13 @@ import numpy as np
 from worker.solver.constraints.log_path import log_path_rows
 from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.methods.cheb_scvx.segments import Segments
-from worker.solver.models.lift_vector import PlanetModel, lift_vector_dynamics, polar_of
+from worker.solver.models.lift_vector import (
+    SHARE_FLOOR,
+    PlanetModel,
+    lift_law,
+    lift_vector_dynamics,
+    polar_of,
+)
 from worker.solver.models.point_mass import PH, TH, R, V
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
@@ -116,10 +122,11 @@ def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, Array,
     its u3 partial is taken in u3 itself, finite at lam = 0. A scheduled vehicle's limits are
     those of its schedule's full lift (u3 moves nothing)."""
     forces = problem.forces
+    law = lift_law(forces)
     polar = polar_of(forces)
     r, v = y[:, R], y[:, V]
     u3 = np.maximum(u[:, 2], 0.0)
-    ft = forces.terms(r, v, None if polar is None else np.sqrt(u3))
+    ft = forces.terms(r, v, None if law == "schedule" else np.sqrt(u3))
     rows = log_path_rows(problem, r, v, ft)
     g_u3 = np.zeros_like(rows.g)
     if polar is not None and "load_factor" in rows.names:
@@ -128,6 +135,15 @@ def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, Array,
         g_u3[:, rows.names.index("load_factor")] = (
             0.5 * (cls2 + 2.0 * cd * polar.k_induced * cls2) / (cls2 * u3 + cd * cd)
         )
+    elif law == "share" and "load_factor" in rows.names:
+        # d ln n / d u3 = (CL dCL/du3 + CD dCD/du3) / (CL^2 + CD^2), CL = lam CL_ref:
+        # CL dCL/du3 = CL_ref^2 / 2, dCD/du3 = (dCD/dlam) / (2 lam)
+        qk = np.maximum(forces.ballistic_factor * ft.rho * v * v, 1e-300)
+        ref, cd_lam = ft.lift_a / qk, ft.drag_a / qk
+        lam = np.maximum(np.sqrt(u3), SHARE_FLOOR)
+        g_u3[:, rows.names.index("load_factor")] = (
+            0.5 * ref * ref + 0.5 * ft.cd * cd_lam / lam
+        ) / (ft.cl * ft.cl + ft.cd * ft.cd)
     pv = path_values(forces, problem.heat_model, r, v, ft)
     return (
         PathLog(rows.names, rows.g, rows.g_r, rows.g_v, g_u3),

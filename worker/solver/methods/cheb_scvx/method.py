@@ -23,6 +23,7 @@ from app.schemas.methods.cheb_scvx import ChebScvxOptions
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
 from worker.solver.constraints.log_path import active_limits
 from worker.solver.methods.base import MethodResult, RunHooks, run_method
+from worker.solver.methods.cheb_scvx.lift_share import alpha_of_share, share_problem
 from worker.solver.methods.cheb_scvx.linearization import (
     ChebIterate,
     ChebLinearization,
@@ -33,6 +34,7 @@ from worker.solver.methods.cheb_scvx.start import (
     guess_start,
     guided_start,
     leg_length,
+    objective_point,
     propagated_start,
     route_points,
     route_start,
@@ -49,7 +51,7 @@ from worker.solver.methods.cheb_scvx.subproblem import (
     step_of,
 )
 from worker.solver.models.layout import POINT_MASS
-from worker.solver.models.lift_vector import PlanetModel
+from worker.solver.models.lift_vector import PlanetModel, lift_law
 from worker.solver.models.point_mass import PH, TH, V
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
@@ -76,6 +78,11 @@ RETRY_REGULARIZATION = 10.0
 WAYPOINT_MARGIN = 0.95
 """Share of a waypoint's radius the points must pass within: the flight between the points and
 the tangent-plane metric on the sphere get the rest."""
+OBJECTIVE_STEERING_GAIN = 0.8
+"""Bank (rad) per radian of heading error of the start steered towards a final-position
+objective's far point: a banked turn that eases as the heading comes round (-72 deg at 90 deg of
+error, as Betts' guess for the Shuttle's crossrange); the waypoint guidance's gain of 2 banks
+to the limit and dives."""
 STATIONARY = 1.0e-9
 """A predicted decrease below this share of the penalized cost: nothing left to gain."""
 
@@ -214,6 +221,13 @@ class ChebScvx:
                 return guided
         if self.route is not None and len(self.route) > 2:
             return route_start(p, self.segments, self.route, self.model, tf)
+        point = objective_point(p) if self.route is None and tf is None else None
+        if point is not None:  # a glide steered the way the objective pays
+            start = (float(p.y0[PH]), float(p.y0[TH]))
+            steered = guided_start(p, self.segments, [start, point], self.model, reach=False,
+                                   gain=OBJECTIVE_STEERING_GAIN)  # fmt: skip
+            if steered is not None:
+                return steered
         target = self.route[-1] if self.route is not None else None
         return propagated_start(p, self.segments, self.model, tf, target)
 
@@ -325,6 +339,7 @@ class ChebScvx:
         small = small and infeasibility <= FEASIBLE
         u = new.u
         gap = float(np.max(u[:, 2] - u[:, 0] ** 2 - u[:, 1] ** 2))
+        law = lift_law(self.problem.forces)
         sc = self.problem.scales
         terms = self.term_values(new, lin)
         record = IterationRecord(
@@ -352,7 +367,7 @@ class ChebScvx:
                 "final_time_change_s": float(np.sum(dT)) * sc.time_s,
                 "second_order_correction": corrected,
                 "regularized_retry": self.retried,
-                **({} if self.problem.lift_range is not None else {"lift_law": "schedule"}),
+                **({"lift_law": law} if law != "polar" else {}),
             },
             **solver_fields(solution),
         )
@@ -475,14 +490,21 @@ class ChebScvx:
     def trajectory(self, reference: ChebIterate) -> OptimizedTrajectory:
         """The state points as a time trajectory, bank and lam as the method represents them."""
         p = self.problem
+        law = lift_law(p.forces)
+        alpha_ctrl, alpha_range = None, None
+        if law == "share":  # the angle of attack of each point's lift share, at its Mach
+            lam = np.clip(np.hypot(reference.u[:, 0], reference.u[:, 1]), *self.lift_range)
+            alpha_ctrl = alpha_of_share(p, reference.y[self.segments.state_of_control], lam)
+            assert p.alpha_range is not None
+            alpha_range = (math.degrees(p.alpha_range[0]), math.degrees(p.alpha_range[1]))
         path = LiftVectorPath(
             self.segments, reference.T.copy(), reference.u.copy(),
-            (p.bank_min, p.bank_max), self.lift_range,
+            (p.bank_min, p.bank_max), self.lift_range, alpha_ctrl, alpha_range,
         )  # fmt: skip
         t = self.segments.times(reference.T)
-        bank, lam = path.at(t)
+        bank, lam_or_alpha = path.at(t)
         # a scheduled vehicle's angle of attack is its schedule's, which the result reads
-        alpha = lam if p.lift_range is not None else None
+        alpha = None if law == "schedule" else lam_or_alpha
         return OptimizedTrajectory(
             "time", t, reference.y.copy(), t, bank, alpha_deg=alpha, attitude=path
         )
@@ -496,11 +518,13 @@ class ChebScvx:
 
 
 def lift_range(problem: EntryProblem) -> tuple[float, float]:
-    """The range of lam: a polar's normalized lift, or (1, 1) for a scheduled vehicle, whose lam
-    is the share of its schedule's lift flown (all of it)."""
+    """The range of lam: a polar's normalized lift or a lift share's (``lift_share``), or (1, 1)
+    for a scheduled vehicle, whose lam is the share of its schedule's lift flown (all of it)."""
     return problem.lift_range if problem.lift_range is not None else (1.0, 1.0)
 
 
 def run(problem: EntryProblem, options: ChebScvxOptions, **hooks: Unpack[RunHooks]) -> MethodResult:
-    """Run paper 001's Chebyshev SCvx on ``problem`` with its ``options``."""
-    return run_method(lambda: ChebScvx(problem, options, problem.planet_model), options, hooks)
+    """Run paper 001's Chebyshev SCvx on ``problem`` with its ``options`` (an optimized angle of
+    attack flown as a lift share)."""
+    flown = share_problem(problem)
+    return run_method(lambda: ChebScvx(flown, options, problem.planet_model), options, hooks)

@@ -211,6 +211,10 @@ class LiftVectorPath:
     u: Array  # (control points, 3)
     bank_range: tuple[float, float] = (-math.pi, math.pi)
     lift_range: tuple[float, float] = (0.0, math.inf)
+    alpha_deg: Array | None = None
+    """The angle of attack at the control points of a vehicle flown by its lift share: flown
+    (in lam's place) as each interval's interpolating polynomial, within ``alpha_range``."""
+    alpha_range: tuple[float, float] | None = None
 
     @property
     def breaks(self) -> Array:
@@ -218,34 +222,48 @@ class LiftVectorPath:
         verification restarts its integration there only."""
         return np.cumsum(self.durations)[:-1]
 
-    def _uv(self, t: Array, derivative: bool) -> tuple[Array, Array]:
+    def _interpolated(self, points: Array, t: Array, derivative: bool) -> Array:
+        """Each interval's polynomial through ``points`` (control points, k) at times ``t``."""
         start = np.concatenate([[0.0], np.cumsum(self.durations)])
         flat = np.clip(np.asarray(t, dtype=float).reshape(-1), 0.0, start[-1])
         last = self.segments.count - 1
         which = np.clip(np.searchsorted(start[1:-1], flat, side="right"), 0, last)
-        values = np.empty((flat.size, 2))
+        values = np.empty((flat.size, points.shape[1]))
         for s in np.unique(which).tolist():  # one interval for the integrator's single times
             mask = which == s
-            u = self.u[self.segments.controls_of(s), :2]
+            u = points[self.segments.controls_of(s)]
             tau = np.clip(2.0 * (flat[mask] - start[s]) / self.durations[s] - 1.0, -1.0, 1.0)
             if derivative:
                 u = self.segments.differentiation(s) @ u * (2.0 / self.durations[s])
             values[mask] = interpolate(u, self.segments.degrees[s], tau)
+        return values
+
+    def _uv(self, t: Array, derivative: bool) -> tuple[Array, Array]:
+        values = self._interpolated(self.u[:, :2], t, derivative)
         return values[:, 0], values[:, 1]
 
     def at(self, t: Array) -> tuple[Array, Array]:
-        """(bank rad, lam) at nondimensional times ``t``."""
+        """(bank rad, lam) at nondimensional times ``t``; (bank, alpha deg) for a lift share."""
         shape = np.shape(t)
         u1, u2 = self._uv(t, False)
         bank = np.clip(np.arctan2(u2, u1), *self.bank_range)
+        if self.alpha_deg is not None:
+            assert self.alpha_range is not None
+            alpha = self._interpolated(self.alpha_deg[:, None], t, False)[:, 0]
+            return bank.reshape(shape), np.clip(alpha, *self.alpha_range).reshape(shape)
         lam = np.clip(np.hypot(u1, u2), *self.lift_range)
         return bank.reshape(shape), lam.reshape(shape)
 
     def rates_at(self, t: Array) -> tuple[Array, Array]:
-        """(d sigma/dt, d lam/dt) at times ``t`` (per nondimensional time), unsaturated."""
+        """(d sigma/dt, d lam/dt) at times ``t`` (per nondimensional time), unsaturated; for a
+        lift share (d sigma/dt, d alpha/dt in radians)."""
         shape = np.shape(t)
         u1, u2 = self._uv(t, False)
         d1, d2 = self._uv(t, True)
         q = np.maximum(u1 * u1 + u2 * u2, 1e-300)
+        bank_rate = ((u1 * d2 - u2 * d1) / q).reshape(shape)
+        if self.alpha_deg is not None:
+            alpha_rate = np.radians(self._interpolated(self.alpha_deg[:, None], t, True)[:, 0])
+            return bank_rate, alpha_rate.reshape(shape)
         lam = np.sqrt(q)
-        return ((u1 * d2 - u2 * d1) / q).reshape(shape), ((u1 * d1 + u2 * d2) / lam).reshape(shape)
+        return bank_rate, ((u1 * d1 + u2 * d2) / lam).reshape(shape)

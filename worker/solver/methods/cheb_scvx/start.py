@@ -3,8 +3,9 @@ constant-control flight (paper 001 step 1: lam = 1, sigma = 0) when there is no 
 
 With a target the states run along the route (great circles on the sphere, straight lines on the
 flat map) at the arc-length share of each point, altitude, speed and flight-path angle from their
-initial values to their terminal targets, heading along the route; lam = 1 and sigma = 0 fly
-every point. The flight time is the route length at the mean of the initial and terminal speeds.
+initial values to their terminal targets, heading along the route; the best lift-to-drag lam
+(1 for a polar) and sigma = 0 fly every point. The flight time is the route length at the mean
+of the initial and terminal speeds.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from scipy.integrate import solve_ivp
 
 from worker.solver.methods.cheb_scvx.linearization import ChebIterate
 from worker.solver.methods.cheb_scvx.segments import Segments
-from worker.solver.models.lift_vector import PlanetModel, lift_vector_dynamics
+from worker.solver.models.lift_vector import PlanetModel, glide_share, lift_vector_dynamics
 from worker.solver.models.point_mass import GA, PH, PS, TH, R, V
 from worker.solver.problem import EntryProblem
 
@@ -128,7 +129,8 @@ def route_start(
         y[sl, V] = y0[V] + share * (v_end - y0[V])
         y[sl, GA] = np.where(share < 0.5, y0[GA] * (1 - 2 * share), g_end * (2 * share - 1))
     y[0] = y0
-    u = np.tile([1.0, 0.0, 1.0], (segments.control_points, 1))
+    lam = glide_share(problem.forces)
+    u = np.tile([lam, 0.0, lam * lam], (segments.control_points, 1))
     return ChebIterate(y, u, durations)
 
 
@@ -178,7 +180,8 @@ def propagated_start(
     of one leg: for ``flight_time``, else until the closest approach to ``target`` (or the
     terminal altitude, or a share of the initial one, whichever comes first)."""
     forces, omega = problem.forces, problem.omega
-    u_c = np.array([[1.0, 0.0, 1.0]])
+    lam = glide_share(forces)
+    u_c = np.array([[lam, 0.0, lam * lam]])
 
     def rhs(t: float, y: Array) -> Array:
         return lift_vector_dynamics(y[None, :], u_c, forces, omega, model, jacobians=False).f[0]
@@ -190,7 +193,7 @@ def propagated_start(
     tf = float(sol.t[-1])
     durations = segments.durations(np.array([tf]))
     y = sol.sol(segments.times(durations)).T
-    u = np.tile([1.0, 0.0, 1.0], (segments.control_points, 1))
+    u = np.tile(u_c[0], (segments.control_points, 1))
     return ChebIterate(y, u, durations)
 
 
@@ -203,7 +206,8 @@ def guess_start(problem: EntryProblem, segments: Segments) -> ChebIterate:
     y, _ = guess.on_times(segments.times(durations))
     _, bank = guess.on_times(segments.control_times(durations))
     y[0] = problem.y0
-    u = np.column_stack([np.cos(bank), np.sin(bank), np.ones_like(bank)])
+    lam = glide_share(problem.forces)
+    u = np.column_stack([lam * np.cos(bank), lam * np.sin(bank), np.full_like(bank, lam * lam)])
     return ChebIterate(y, u, durations)
 
 
@@ -228,21 +232,27 @@ def guided_start(
     segments: Segments,
     route: list[tuple[float, float]],
     model: PlanetModel,
+    *,
+    reach: bool = True,
+    gain: float = GUIDANCE_GAIN,
 ) -> ChebIterate | None:
-    """A glide at lam = 1 steered towards each point of the route in turn (bank proportional to
-    the heading error, within the bank range), each leg ending at its point's closest approach:
-    a dynamically consistent start through the waypoints, the legs' durations its times of
-    arrival. None when the glide comes down before the last point."""
+    """A glide at the best lift-to-drag lam (``glide_share``) steered towards each point of the
+    route in turn (bank proportional to the heading error, within the bank range), each leg
+    ending at its point's closest approach: a dynamically consistent start through the
+    waypoints, the legs' durations its times of arrival. None when the glide comes down before
+    the last point (unless ``reach`` is false: then a leg may end where the glide comes down,
+    the point only a direction to steer towards)."""
     forces, omega = problem.forces, problem.omega
     r_end = _floor_radius(problem)
+    lam = glide_share(forces)
 
     def bank_towards(y: Array, point: tuple[float, float]) -> float:
         error = (_course(y, point, model) - float(y[PS]) + math.pi) % (2.0 * math.pi) - math.pi
-        return min(max(GUIDANCE_GAIN * error, problem.bank_min), problem.bank_max)
+        return min(max(gain * error, problem.bank_min), problem.bank_max)
 
     def controls(y: Array, point: tuple[float, float]) -> Array:
         bank = bank_towards(y, point)
-        return np.array([[math.cos(bank), math.sin(bank), 1.0]])
+        return np.array([[lam * math.cos(bank), lam * math.sin(bank), lam * lam]])
 
     legs, durations = [], []
     y0 = problem.y0.copy()
@@ -255,7 +265,7 @@ def guided_start(
         events = _glide_events(rhs, r_end, point, model)
         sol = solve_ivp(rhs, (0.0, 30.0), y0, events=events, dense_output=True,
                         rtol=1e-8, atol=1e-10, max_step=0.05)  # fmt: skip
-        if sol.t_events[1].size == 0 or sol.t[-1] <= 0.0:
+        if (reach and sol.t_events[1].size == 0) or sol.t[-1] <= 0.0:
             return None
         legs.append((sol, point))
         durations.append(float(sol.t[-1]))
@@ -275,3 +285,22 @@ def guided_start(
         u[cl] = np.vstack([controls(row, point) for row in ys])
     y[0] = problem.y0
     return ChebIterate(y, u, T)
+
+
+def objective_point(problem: EntryProblem) -> tuple[float, float] | None:
+    """Without a target point, a far point in the direction a final-position objective rewards
+    (maximum final latitude: the north pole's side, 89 deg; longitude extremes: 90 deg of
+    longitude away along the initial latitude), for a start steered towards it; None for
+    other objectives."""
+    lat0, lon0 = float(problem.y0[PH]), float(problem.y0[TH])
+    far = math.radians(89.0)
+    for term in problem.objective:
+        if term.name == "max_final_latitude":
+            return far, lon0
+        if term.name == "min_final_latitude":
+            return -far, lon0
+        if term.name == "max_final_longitude":
+            return lat0, lon0 + math.pi / 2
+        if term.name == "min_final_longitude":
+            return lat0, lon0 - math.pi / 2
+    return None

@@ -4,7 +4,10 @@ any work is done."""
 from __future__ import annotations
 
 from app.schemas import FieldIssue, ProblemDocument
+from worker.solver.aero_models import LiftShareAero
+from worker.solver.aerodynamics import aero_from_spec
 from worker.solver.methods.base import FINAL_EXTREMES, issue, objective_issues
+from worker.solver.methods.cheb_scvx.lift_share import mach_samples
 
 NAME = "cheb-scvx"
 OBJECTIVES = ("min_time", "max_terminal_velocity", "min_heat_load", *FINAL_EXTREMES)
@@ -14,18 +17,9 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     """Features the method cannot express."""
     out: list[FieldIssue] = []
     alpha = doc.vehicle.angle_of_attack
-    if doc.vehicle.aerodynamics.model != "parabolic_polar" and (
-        alpha is not None and alpha.mode == "optimized"
-    ):
-        out.append(
-            issue(
-                "vehicle.angle_of_attack.mode",
-                f"{NAME} flies the lift vector (lambda cos sigma, lambda sin sigma, lambda^2) of "
-                "a parabolic polar, or the bank of a vehicle whose angle of attack follows a "
-                'schedule; give {"model": "parabolic_polar", ...} aerodynamics or a '
-                "velocity_schedule, table or constant angle of attack",
-            )
-        )
+    optimized = alpha is not None and alpha.mode == "optimized"
+    if optimized:
+        out.extend(_lift_share_issues(doc))
     limits = doc.control_limits
     if limits.bank_max_deg >= 90.0 or limits.bank_lower_deg <= -90.0:
         out.append(
@@ -48,11 +42,13 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         )
     hr = doc.path_constraints.heat_rate
     polar = doc.vehicle.aerodynamics.model == "parabolic_polar"
-    if hr is not None and hr.alpha_polynomial and polar:
+    if hr is not None and hr.alpha_polynomial and (polar or optimized):
         out.append(
             issue(
                 "path_constraints.heat_rate.alpha_polynomial",
-                f"{NAME}'s polar vehicle has no angle of attack for a heating factor",
+                f"{NAME} has no angle of attack for a heating factor when it shapes the lift "
+                "(a polar's normalized lift, an optimized angle of attack's lift share): only "
+                "a scheduled angle of attack",
             )
         )
     for key in ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s",
@@ -86,4 +82,33 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
             issue("energy", f"{NAME} works in time and ignores energy bounds; leave energy out")
         )
     out.extend(objective_issues(doc, NAME, OBJECTIVES, "optimize"))
+    return out
+
+
+def _lift_share_issues(doc: ProblemDocument) -> list[FieldIssue]:
+    """An optimized angle of attack is flown as the lift share lam = CL(alpha, M) /
+    CL(alpha_max, M): no initial value or rate bound, and CL must increase with alpha."""
+    spec = doc.vehicle.angle_of_attack
+    assert spec is not None and spec.mode == "optimized"
+    out: list[FieldIssue] = []
+    if spec.rate_max_deg_s is not None:
+        out.append(
+            issue(
+                "vehicle.angle_of_attack.rate_max_deg_s",
+                f"{NAME} derives the angle of attack from the normalized lift and bounds no rate "
+                "of it; leave it out",
+            )
+        )
+    if spec.initial_deg is not None:
+        out.append(
+            issue(
+                "vehicle.angle_of_attack.initial_deg",
+                f"{NAME} leaves the initial angle of attack free; leave it out",
+            )
+        )
+    aero = aero_from_spec(doc.vehicle.aerodynamics)
+    try:
+        LiftShareAero.checked(aero, spec.min_deg, spec.max_deg, mach_samples(aero, 1.0))
+    except ValueError as exc:
+        out.append(issue("vehicle.angle_of_attack", f"{NAME}: {exc}"))
     return out
