@@ -476,3 +476,26 @@ def test_an_optimized_angle_of_attacks_refusals_name_the_field() -> None:
     falling = _shuttle()
     falling["vehicle"]["aerodynamics"]["cl_coefficients"] = [0.5, -0.001]
     assert "CL must increase" in _issues(falling)["vehicle.angle_of_attack"]
+
+
+def test_the_scalar_path_is_the_array_path() -> None:
+    """The integrator's one-time evaluation (Python floats) gives the array path's bank and
+    lam (or alpha) at any time, nodes and breaks included (1e-13: the same barycentric formula
+    summed in another order)."""
+    seg = Segments.sized(31, 3, [1.0], 0)
+    rng = np.random.default_rng(12)
+    u = lift_controls(
+        rng.uniform(0.3, 1.5, seg.control_points), rng.uniform(-1, 1, seg.control_points)
+    )
+    T = np.array([0.3, 0.4, 0.5])
+    alpha = rng.uniform(5.0, 30.0, seg.control_points)
+    times = np.concatenate([rng.uniform(-0.1, 1.3, 50), seg.times(T), [0.3, 0.7, 1.2]])
+    for path in (
+        LiftVectorPath(seg, T, u, (-0.9, 0.9), (0.4, 1.4)),
+        LiftVectorPath(seg, T, u, (-0.9, 0.9), (0.4, 1.4), alpha, (8.0, 28.0)),
+    ):
+        bank, second = path.at(times)
+        for k, t in enumerate(times):
+            b1, s1 = path.at(np.array([t]))
+            assert b1.shape == (1,)
+            np.testing.assert_allclose([b1[0], s1[0]], [bank[k], second[k]], rtol=1e-13, atol=1e-14)

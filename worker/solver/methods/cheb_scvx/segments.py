@@ -12,12 +12,14 @@ each interval its own ends).
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from worker.solver.transcription.cgl import (
+    barycentric_weights,
     cgl_points,
     clenshaw_curtis_weights,
     differentiation_matrix,
@@ -242,9 +244,61 @@ class LiftVectorPath:
         values = self._interpolated(self.u[:, :2], t, derivative)
         return values[:, 0], values[:, 1]
 
+    @cached_property
+    def _scalar_tables(self) -> tuple[list[float], list[float], list[tuple[list[float], ...]]]:
+        """For one time at a time (the integrator's calls): the interior breaks, the starts and
+        per interval its CGL points, barycentric weights and the values (u1, u2[, alpha]) at
+        its points, as Python floats."""
+        start = np.concatenate([[0.0], np.cumsum(self.durations)])
+        columns = [self.u[:, 0], self.u[:, 1]]
+        if self.alpha_deg is not None:
+            columns.append(self.alpha_deg)
+        tables = []
+        for s, n in enumerate(self.segments.degrees):
+            ctrl = self.segments.controls_of(s)
+            tables.append(
+                (
+                    self.segments.tau(s).tolist(),
+                    barycentric_weights(n).tolist(),
+                    *(c[ctrl].tolist() for c in columns),
+                )
+            )
+        return start[1:-1].tolist(), start.tolist(), tables
+
+    def _at_scalar(self, t: float) -> tuple[float, float]:
+        """``at`` for one time in Python floats: the same barycentric interpolation (second
+        kind, a node's own value on a node) without the array machinery, for the integrator's
+        right-hand side."""
+        breaks, start, tables = self._scalar_tables
+        t = min(max(t, 0.0), start[-1])
+        s = bisect_right(breaks, t)
+        tau = min(max(2.0 * (t - start[s]) / (start[s + 1] - start[s]) - 1.0, -1.0), 1.0)
+        x, w, *cols = tables[s]
+        out = [0.0] * len(cols)
+        den = 0.0
+        for j, xj in enumerate(x):
+            d = tau - xj
+            if d == 0.0:
+                out = [c[j] for c in cols]
+                den = 1.0
+                break
+            c_j = w[j] / d
+            den += c_j
+            for i, col in enumerate(cols):
+                out[i] += c_j * col[j]
+        u1, u2 = out[0] / den, out[1] / den
+        bank = min(max(math.atan2(u2, u1), self.bank_range[0]), self.bank_range[1])
+        if self.alpha_deg is not None:
+            assert self.alpha_range is not None
+            return bank, min(max(out[2] / den, self.alpha_range[0]), self.alpha_range[1])
+        return bank, min(max(math.hypot(u1, u2), self.lift_range[0]), self.lift_range[1])
+
     def at(self, t: Array) -> tuple[Array, Array]:
         """(bank rad, lam) at nondimensional times ``t``; (bank, alpha deg) for a lift share."""
         shape = np.shape(t)
+        if np.size(t) == 1:  # the integrator's one time: Python floats
+            bank, second = self._at_scalar(float(np.asarray(t, dtype=float).reshape(-1)[0]))
+            return np.full(shape, bank), np.full(shape, second)
         u1, u2 = self._uv(t, False)
         bank = np.clip(np.arctan2(u2, u1), *self.bank_range)
         if self.alpha_deg is not None:
