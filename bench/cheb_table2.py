@@ -22,7 +22,7 @@ import copy
 from typing import Any
 
 from app.schemas import ProblemDocument
-from bench.hp_table2 import timing_cells
+from bench.hp_table2 import cell, timing_cells
 from worker.solver.api import solve_problem
 from worker.solver.scenarios import get_scenario
 
@@ -63,14 +63,6 @@ def nlp_row(intervals: int) -> dict[str, Any]:
     }
 
 
-def _cell(value: Any, fmt: str = "{:.3g}") -> str:
-    if value is None:
-        return "—"
-    if isinstance(value, float):
-        return fmt.format(value)
-    return str(value)
-
-
 def table(rows: list[dict[str, Any]], nlp_s: float | None) -> str:
     """The rows as a Markdown table; ``nlp_s``: the first NLP row's solve time."""
     lines = [
@@ -84,12 +76,12 @@ def table(rows: list[dict[str, Any]], nlp_s: float | None) -> str:
         total = (row["optimization_s"] or 0.0) + (row["verification_s"] or 0.0)
         speed = nlp_s / total if nlp_s and row["verification_s"] is not None else None
         lines.append(
-            f"| {row['label']} | {row['status']} | {_cell(row['iterations'])} | "
-            f"{_cell(row['optimization_s'], '{:.2f}')} | "
-            f"{_cell(row['verification_s'], '{:.2f}')} | "
-            f"{_cell(row['wall_over_conic'], '{:.2f}')} | "
-            f"{_cell(row['gamma_error_deg'], '{:+.3f}')} | "
-            f"{_cell(tf, '{:.2f}')} | {_cell(off, '{:+.3f} %')} | {_cell(speed, '{:.2f}')} |"
+            f"| {row['label']} | {row['status']} | {cell(row['iterations'])} | "
+            f"{cell(row['optimization_s'], '{:.2f}')} | "
+            f"{cell(row['verification_s'], '{:.2f}')} | "
+            f"{cell(row['wall_over_conic'], '{:.2f}')} | "
+            f"{cell(row['gamma_error_deg'], '{:+.3f}')} | "
+            f"{cell(tf, '{:.2f}')} | {cell(off, '{:+.3f} %')} | {cell(speed, '{:.2f}')} |"
         )
     return "\n".join(lines)
 

@@ -94,7 +94,8 @@ def nlp_row(intervals: int) -> dict[str, Any]:
     }
 
 
-def _cell(value: Any, fmt: str = "{:.3g}") -> str:
+def cell(value: Any, fmt: str = "{:.3g}") -> str:
+    """A table cell: ``fmt`` for a float, a dash when absent."""
     if value is None:
         return "—"
     if isinstance(value, float):
@@ -115,14 +116,14 @@ def table(rows: list[dict[str, Any]]) -> str:
     for row in rows:
         tf = row["tf_s"]
         off = None if tf is None else 100.0 * (tf / REFERENCE_TF_S - 1.0)
-        errors = [_cell(row["errors"].get(n), "{:.2g}") for n in names]
+        errors = [cell(row["errors"].get(n), "{:.2g}") for n in names]
         lines.append(
-            f"| {row['label']} | {row['status']} | {_cell(row['points'])} | "
-            f"{_cell(row['iterations'])} | {_cell(row['optimization_s'], '{:.2f}')} | "
-            f"{_cell(row['verification_s'], '{:.2f}')} | "
-            f"{_cell(row['wall_over_conic'], '{:.2f}')} | "
+            f"| {row['label']} | {row['status']} | {cell(row['points'])} | "
+            f"{cell(row['iterations'])} | {cell(row['optimization_s'], '{:.2f}')} | "
+            f"{cell(row['verification_s'], '{:.2f}')} | "
+            f"{cell(row['wall_over_conic'], '{:.2f}')} | "
             + " | ".join(errors)
-            + f" | {_cell(tf, '{:.2f}')} | {_cell(off, '{:+.2f} %')} |"
+            + f" | {cell(tf, '{:.2f}')} | {cell(off, '{:+.2f} %')} |"
         )
     return "\n".join(lines)
 

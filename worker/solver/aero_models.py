@@ -130,8 +130,9 @@ class ParabolicPolarAero:
 END_NUDGE_DEG = 1.0e-9
 """How far inside its bounds a lift share reads CL's slope at the bounds."""
 LIFT_SHARE_NEWTON_STEPS = 60
-"""Safeguarded Newton steps of the inversion of CL(alpha, M) (each halves the bracket at least
-when Newton leaves it: 60 reach round-off on any bracket of degrees)."""
+"""Most safeguarded Newton steps of the inversion of CL(alpha, M) (each halves the bracket at
+least when Newton leaves it: 60 reach round-off on any bracket of degrees); the loop ends
+earlier at an exact fixed point, where more steps would change nothing."""
 
 
 @dataclass(frozen=True)
@@ -204,7 +205,10 @@ class LiftShareAero:
             lo = np.where(miss <= 0.0, a, lo)
             step = a - miss / np.where(c.dcl_dalpha > 0.0, c.dcl_dalpha, np.inf)
             inside = (step > lo) & (step < hi)
-            a = np.where(inside, step, 0.5 * (lo + hi))
+            moved = np.where(inside, step, 0.5 * (lo + hi))
+            if np.array_equal(moved, a):  # a fixed point: further steps would repeat it
+                break
+            a = moved
         slope_lo, slope_hi = self._end_slopes(mach_a)
         a = np.where(below, self.alpha_min_deg + (target - c_lo.cl) / slope_lo, a)
         return np.where(above, self.alpha_max_deg + (target - ref) / slope_hi, a)

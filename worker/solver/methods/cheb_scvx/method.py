@@ -31,6 +31,7 @@ from worker.solver.methods.cheb_scvx.linearization import (
 )
 from worker.solver.methods.cheb_scvx.segments import LiftVectorPath, Segments
 from worker.solver.methods.cheb_scvx.start import (
+    OBJECTIVE_STEERING_GAIN,
     guess_start,
     guided_start,
     leg_length,
@@ -78,11 +79,6 @@ RETRY_REGULARIZATION = 10.0
 WAYPOINT_MARGIN = 0.95
 """Share of a waypoint's radius the points must pass within: the flight between the points and
 the tangent-plane metric on the sphere get the rest."""
-OBJECTIVE_STEERING_GAIN = 0.8
-"""Bank (rad) per radian of heading error of the start steered towards a final-position
-objective's far point: a banked turn that eases as the heading comes round (-72 deg at 90 deg of
-error, as Betts' guess for the Shuttle's crossrange); the waypoint guidance's gain of 2 banks
-to the limit and dives."""
 STATIONARY = 1.0e-9
 """A predicted decrease below this share of the penalized cost: nothing left to gain."""
 
@@ -104,6 +100,7 @@ class ChebScvx:
     def __init__(self, problem: EntryProblem, options: ChebScvxOptions, model: PlanetModel) -> None:
         self.problem, self.options, self.model = problem, options, model
         self.lift_range = lift_range(problem)
+        self.law = lift_law(problem.forces)
         sc = problem.scales
         route = route_points(problem)
         self.route = route
@@ -339,7 +336,6 @@ class ChebScvx:
         small = small and infeasibility <= FEASIBLE
         u = new.u
         gap = float(np.max(u[:, 2] - u[:, 0] ** 2 - u[:, 1] ** 2))
-        law = lift_law(self.problem.forces)
         sc = self.problem.scales
         terms = self.term_values(new, lin)
         record = IterationRecord(
@@ -367,7 +363,7 @@ class ChebScvx:
                 "final_time_change_s": float(np.sum(dT)) * sc.time_s,
                 "second_order_correction": corrected,
                 "regularized_retry": self.retried,
-                **({"lift_law": law} if law != "polar" else {}),
+                **({"lift_law": self.law} if self.law != "polar" else {}),
             },
             **solver_fields(solution),
         )
@@ -416,12 +412,11 @@ class ChebScvx:
         """The objective in the subproblem's units on ``it``."""
         st = self.setup
         value = st.objective_time * float(np.sum(it.T))
-        fixed = st.lam2[0] == st.lam2[1]
-        if st.lift_weight and not fixed:
+        if st.lift_weight and not st.fixed_lift:
             for s in range(self.segments.count):
                 ctrl = self.segments.controls_of(s)
                 value += st.lift_weight * float(self.segments.quadrature(s) @ it.u[ctrl, 2])
-        if st.unused_lift_weight and fixed:
+        if st.unused_lift_weight and st.fixed_lift:
             unused = 1.0 - np.hypot(it.u[:, 0], it.u[:, 1])
             value += st.unused_lift_weight * float(np.sum(unused))
         for j, w in st.objective_state.items():
@@ -490,9 +485,8 @@ class ChebScvx:
     def trajectory(self, reference: ChebIterate) -> OptimizedTrajectory:
         """The state points as a time trajectory, bank and lam as the method represents them."""
         p = self.problem
-        law = lift_law(p.forces)
         alpha_ctrl, alpha_range = None, None
-        if law == "share":  # the angle of attack of each point's lift share, at its Mach
+        if self.law == "share":  # the angle of attack of each point's lift share, at its Mach
             lam = np.clip(np.hypot(reference.u[:, 0], reference.u[:, 1]), *self.lift_range)
             alpha_ctrl = alpha_of_share(p, reference.y[self.segments.state_of_control], lam)
             assert p.alpha_range is not None
@@ -504,7 +498,7 @@ class ChebScvx:
         t = self.segments.times(reference.T)
         bank, lam_or_alpha = path.at(t)
         # a scheduled vehicle's angle of attack is its schedule's, which the result reads
-        alpha = None if law == "schedule" else lam_or_alpha
+        alpha = None if self.law == "schedule" else lam_or_alpha
         return OptimizedTrajectory(
             "time", t, reference.y.copy(), t, bank, alpha_deg=alpha, attitude=path
         )

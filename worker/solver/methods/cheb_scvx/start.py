@@ -213,6 +213,11 @@ def guess_start(problem: EntryProblem, segments: Segments) -> ChebIterate:
 
 GUIDANCE_GAIN = 2.0
 """Bank (rad) per radian of heading error of the guided glide's steering towards the next point."""
+OBJECTIVE_STEERING_GAIN = 0.8
+"""Bank (rad) per radian of heading error of the start steered towards a final-position
+objective's far point (``objective_point``): a banked turn that eases as the heading comes round
+(-72 deg at 90 deg of error, as Betts' guess for the Shuttle's crossrange); the waypoint
+guidance's gain of 2 banks to the limit and dives."""
 
 
 def _course(y: Array, point: tuple[float, float], model: PlanetModel) -> float:

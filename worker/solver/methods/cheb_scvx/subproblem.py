@@ -87,6 +87,11 @@ class Setup:
     unused_lift_weight: float = 0.0  # per point and unit of 1 - |(u1, u2)| (u3 fixed)
     bank_rate_max: float | None = None  # rad per nondimensional time
 
+    @property
+    def fixed_lift(self) -> bool:
+        """u3 is fixed (a scheduled vehicle's lam range is [1, 1])."""
+        return self.lam2[0] == self.lam2[1]
+
 
 @dataclass
 class Columns:
@@ -260,7 +265,7 @@ def build(
     lo2, hi2 = setup.lam2
     u3 = ref.u[:, 2]
     iq = np.arange(Q)
-    if lo2 == hi2:  # a fixed lift (a scheduled vehicle's): an equality, not a closed interval
+    if setup.fixed_lift:  # a scheduled vehicle's: an equality, not a closed interval
         zero.add((hi2 - u3) / un.u[2], (iq, uc[:, 2], 1.0))
     else:
         nonneg.add(
@@ -349,14 +354,14 @@ def build(
         soc_dims.append(4)
     # the induced-drag share u3 weighed lightly: where the objective is indifferent to it (a
     # push-over at no lift) the relaxed cone is made tight instead of left slack
-    if setup.lift_weight and lo2 != hi2:
+    if setup.lift_weight and not setup.fixed_lift:
         for s in range(S):
             ctrl = np.arange(Q)[segments.controls_of(s)]
             q[uc[ctrl, 2]] += setup.lift_weight * segments.quadrature(s) * un.u[2]
     # with u3 fixed (a scheduled vehicle) the lift share left unused, 1 - |(u1, u2)|, at each
     # point, linearized along the reference's direction (a concave term's tangent: the model
     # bounds it from above); at a reference with no lift, along u1
-    if setup.unused_lift_weight and lo2 == hi2:
+    if setup.unused_lift_weight and setup.fixed_lift:
         norm = np.hypot(u1, u2)
         safe = np.maximum(norm, 1e-300)
         along = np.where(norm > 0.0, u1 / safe, 1.0)
