@@ -277,9 +277,13 @@ function stateChangeText(change) {
     .join("; ");
 }
 
+function showStatus(status) {
+  document.getElementById("status").textContent = status;
+  document.getElementById("status").className = "status-" + status;
+}
+
 function showJob(job) {
-  document.getElementById("status").textContent = job.status;
-  document.getElementById("status").className = "status-" + job.status;
+  showStatus(job.status);
   document.getElementById("method").textContent = job.method;
   const progress = job.progress || {};
   document.getElementById("phase").textContent = ACTIVE.has(job.status)
@@ -366,6 +370,7 @@ async function followJob(base, table) {
           table.replaceChildren(); // a new attempt starts its history again
         }
         attempt = data.attempt;
+        showStatus("running"); // a page opened while the job was queued sees it start here
         addIteration(table, seen, data);
       } else if (event === "phase") {
         document.getElementById("phase").textContent = data.phase;

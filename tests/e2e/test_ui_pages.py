@@ -25,6 +25,13 @@ pytestmark = pytest.mark.slow
 ZONE_SCENARIO = "rlv-max-terminal-velocity-active-nfz"
 AT_LEAST = "n => Number(document.querySelector('#iteration').textContent) >= n"
 """A function (a string expression would be evaluated, which the pages' policy forbids)."""
+ROWS_AT_LEAST = "n => document.querySelectorAll('#progress tbody tr').length >= n"
+ROWS_AND_COUNTER = """() => [
+    document.querySelectorAll('#progress tbody tr').length,
+    Number(document.querySelector('#iteration').textContent),
+]"""
+"""The table's rows and the iteration counter, read together in one turn of the page's event
+loop: several iterations can arrive in one chunk between two separate reads."""
 
 
 class PageWatch:
@@ -117,10 +124,11 @@ def test_a_running_job_updates_live_and_shows_its_end(
     try:
         page.goto(f"{embedded_server.base_url}/ui/jobs/{job['id']}")
         page.wait_for_function(AT_LEAST, arg=2, timeout=120_000)
-        first = int(page.inner_text("#iteration"))
-        first_rows = page.eval_on_selector_all("#progress tbody tr", "rs => rs.length")
-        page.wait_for_function(AT_LEAST, arg=first + 3, timeout=60_000)
-        assert page.eval_on_selector_all("#progress tbody tr", "rs => rs.length") > first_rows
+        first_rows, _ = page.evaluate(ROWS_AND_COUNTER)
+        page.wait_for_function(ROWS_AT_LEAST, arg=first_rows + 3, timeout=60_000)
+        rows, shown = page.evaluate(ROWS_AND_COUNTER)
+        assert rows >= first_rows + 3
+        assert shown == rows  # the counter names the last row (iterations numbered from 1)
         assert page.inner_text("#status") == "running"
     finally:
         embedded_client.http.delete(f"/v1/jobs/{job['id']}")
@@ -131,6 +139,31 @@ def test_a_running_job_updates_live_and_shows_its_end(
         "() => document.querySelector('#message').textContent.startsWith('finished')"
     )
     assert "cancelled" in page.inner_text("#failure")
+    watch.clean()
+
+
+def test_a_page_opened_on_a_queued_job_sees_it_start(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    """The server has one local worker: a second job waits behind the first until that one is
+    cancelled, and its page (opened while it waited) shows it running as its iterations come."""
+    ahead = embedded_client.submit(long_job(ZONE_SCENARIO))
+    waiting = embedded_client.submit(long_job(ZONE_SCENARIO))
+    page = watch.page
+    try:
+        embedded_client.wait_for(ahead["id"], lambda job: job["status"] == "running", 120, "start")
+        page.goto(f"{embedded_server.base_url}/ui/jobs/{waiting['id']}")
+        page.wait_for_function("() => document.querySelector('#status').textContent !== 'loading'")
+        assert page.inner_text("#status") == "queued"
+        embedded_client.http.delete(f"/v1/jobs/{ahead['id']}")
+        page.wait_for_function(ROWS_AT_LEAST, arg=2, timeout=120_000)
+        assert page.inner_text("#status") == "running"
+    finally:
+        embedded_client.http.delete(f"/v1/jobs/{ahead['id']}")
+        embedded_client.http.delete(f"/v1/jobs/{waiting['id']}")
+    page.wait_for_function(
+        "() => document.querySelector('#status').textContent === 'cancelled'", timeout=60_000
+    )
     watch.clean()
 
 
