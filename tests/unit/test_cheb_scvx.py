@@ -368,14 +368,20 @@ def test_case1_one_vehicle_two_methods_one_answer() -> None:
 SHUTTLE_CL, SHUTTLE_CD = [-0.20704, 0.029244], [0.07854, -0.61592e-2, 0.621408e-3]
 
 
+def _table_arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A Mach-dependent CL, CD table on alpha in [0, 40] deg (alpha, Mach, CL, CD); the lift
+    share of an alpha moves with Mach (the Mach factors of CL's two terms differ)."""
+    alpha = np.linspace(0.0, 40.0, 9)
+    mach = np.array([2.0, 5.0, 10.0, 20.0])
+    cl = 0.02 * (1.0 + 2.0 / mach[None, :]) + 0.03 * alpha[:, None] * (1.0 + 0.5 / mach[None, :])
+    cd = (0.05 + 0.0008 * alpha[:, None] ** 2) * (1.0 + 0.3 / mach[None, :])
+    return alpha, mach, cl, cd
+
+
 def _table_aero() -> Any:
     from worker.solver.aero_tables import TableAero
 
-    alpha = np.linspace(0.0, 40.0, 9)
-    mach = np.array([2.0, 5.0, 10.0, 20.0])
-    cl = (0.02 + 0.03 * alpha[:, None]) * (1.0 + 0.5 / mach[None, :])
-    cd = (0.05 + 0.0008 * alpha[:, None] ** 2) * (1.0 + 0.3 / mach[None, :])
-    return TableAero(alpha, mach, cl, cd, "cubic")
+    return TableAero(*_table_arrays(), "cubic")
 
 
 def test_a_lift_share_inverts_cl_and_its_partials_are_the_models() -> None:
@@ -466,16 +472,73 @@ def _shuttle() -> dict[str, Any]:
 def test_an_optimized_angle_of_attacks_refusals_name_the_field() -> None:
     doc = _shuttle()
     doc["vehicle"]["angle_of_attack"].update(rate_max_deg_s=2.0, initial_deg=20.0)
-    doc["path_constraints"] = {
-        "heat_rate": {"max_W_m2": 8e5, "k_q": 1e-4, "alpha_polynomial": [1, 0.01]}
-    }
+    heating = {"heat_rate": {"max_W_m2": 8e5, "k_q": 1e-4, "alpha_polynomial": [1, 0.01]}}
+    doc["path_constraints"] = heating
     issues = _issues(doc)
     assert "rate" in issues["vehicle.angle_of_attack.rate_max_deg_s"]
     assert "initial" in issues["vehicle.angle_of_attack.initial_deg"]
-    assert "heating factor" in issues["path_constraints.heat_rate.alpha_polynomial"]
+    assert "path_constraints.heat_rate.alpha_polynomial" not in issues  # alpha(lam, M) has one
+    polar = _doc()
+    polar["path_constraints"] = heating
+    assert "polar" in _issues(polar)["path_constraints.heat_rate.alpha_polynomial"]
     falling = _shuttle()
     falling["vehicle"]["aerodynamics"]["cl_coefficients"] = [0.5, -0.001]
     assert "CL must increase" in _issues(falling)["vehicle.angle_of_attack"]
+
+
+@pytest.mark.parametrize("aero", ["polynomial", "table"])
+def test_a_lift_shares_heating_factor_is_taken_at_its_angle(aero: str) -> None:
+    """The heat-limited Shuttle's heat rate at lift shares: its value is the vehicle's own
+    heating at alpha(lam, M) (1e-12 relative: the same formula), and the partials of the heat
+    rate and of ln(q / q_max) in r, V and u3 = lam^2 match central differences (step 1e-7,
+    rtol 1e-5: the differences' truncation). The Mach-dependent cubic table in the US76
+    atmosphere exercises the Mach partial of alpha (through r and V)."""
+    from worker.solver.methods.cheb_scvx.lift_share import alpha_of_share, share_problem
+    from worker.solver.methods.cheb_scvx.linearization import path_log
+    from worker.solver.path_limits import path_values
+
+    doc = copy.deepcopy(get_scenario("shuttle-max-crossrange-heat-limited").problem)
+    if aero == "table":
+        alpha_grid, mach_grid, cl, cd = _table_arrays()
+        doc["vehicle"]["aerodynamics"] = {
+            "model": "table",
+            "alpha_deg": alpha_grid.tolist(),
+            "mach": mach_grid.tolist(),
+            "cl": cl.tolist(),
+            "cd": cd.tolist(),
+            "interpolation": "cubic",
+        }
+        doc["vehicle"]["angle_of_attack"].update(min_deg=0, max_deg=40)
+        doc["planet"]["atmosphere"] = {"model": "us76"}  # a speed of sound that varies
+    own = build_problem(ProblemDocument.model_validate(doc))
+    problem = share_problem(own)
+    sc = problem.scales
+    n = 6
+    y, _ = _states(n, seed=5)
+    y[:, 0] = 1.0 + np.linspace(25e3, 75e3, n) / sc.radius_m  # Mach 2.5 to 25
+    y[:, 3] = np.linspace(800.0, 7500.0, n) / sc.speed_m_s
+    lam = np.linspace(0.25, 0.9, n)
+    u = lift_controls(lam, np.linspace(-1.0, 0.2, n))
+    rows, heat = path_log(problem, y, u)
+    assert rows.names == ("heat_rate",)
+    alpha = alpha_of_share(problem, y, lam)
+    ft = own.forces.terms(y[:, 0], y[:, 3], alpha)
+    q = path_values(own.forces, own.heat_model, y[:, 0], y[:, 3], ft).heat_rate
+    np.testing.assert_allclose(heat.value, q, rtol=1e-12)
+    h = 1e-7
+    for name, step in (("r", (0, None)), ("v", (3, None)), ("u3", (None, 2))):
+        state, control = step
+        yp, ym, up, um = y.copy(), y.copy(), u.copy(), u.copy()
+        if state is not None:
+            yp[:, state] += h
+            ym[:, state] -= h
+        else:
+            up[:, control] += h
+            um[:, control] -= h
+        (rp, hp), (rm, hm) = path_log(problem, yp, up), path_log(problem, ym, um)
+        np.testing.assert_allclose(getattr(heat, name), (hp.value - hm.value) / (2 * h), rtol=1e-5)
+        log_partial = getattr(rows, f"g_{name}")[:, 0]
+        np.testing.assert_allclose(log_partial, (rp.g[:, 0] - rm.g[:, 0]) / (2 * h), rtol=1e-5)
 
 
 def test_the_scalar_path_is_the_array_path() -> None:

@@ -38,6 +38,7 @@ REQUIRED: frozenset[str] = frozenset(
         "cheb-cavh-spherical",
         "cheb-cavh-waypoints",
         "cheb-shuttle-max-crossrange",
+        "cheb-shuttle-max-crossrange-heat-limited",
         "energy-hard-terminal",
         "energy-heat-rate-800",
         "energy-max-final-latitude",

@@ -136,6 +136,22 @@ earlier at an exact fixed point, where more steps would change nothing."""
 
 
 @dataclass(frozen=True)
+class ShareAlpha:
+    """The angle of attack of a lift share, its partials and what they were made of."""
+
+    alpha_deg: Array
+    alpha_lam: Array
+    """d alpha / d lam (deg)."""
+    alpha_mach: Array
+    """d alpha / dM at fixed lam (deg)."""
+    reference: Array
+    """CL(alpha_max, M)."""
+    reference_mach: Array
+    base: AeroCoefficients
+    """The vehicle's own coefficients at alpha."""
+
+
+@dataclass(frozen=True)
 class LiftShareAero:
     """An angle-of-attack vehicle flown by its lift share lam = CL(alpha, M) / CL(alpha_max, M):
     paper 001's normalized lift for any CL, CD model, alpha derived from lam by inverting CL at
@@ -219,21 +235,29 @@ class LiftShareAero:
         hi = self.base.coefficients(np.full(mach.shape, self.alpha_max_deg - END_NUDGE_DEG), mach)
         return lo.dcl_dalpha, hi.dcl_dalpha
 
-    def coefficients(self, alpha_deg: npt.ArrayLike, mach: npt.ArrayLike) -> AeroCoefficients:
-        """CL = lam CL_ref(M), CD(alpha(lam, M), M) and their lam and Mach partials at lift share
-        ``alpha_deg`` (lam, see the class): d alpha/d lam = CL_ref / CL_alpha and
-        d alpha/dM = (lam CL_ref' - CL_M) / CL_alpha from CL(alpha, M) = lam CL_ref(M)."""
-        shape = np.broadcast_shapes(np.shape(alpha_deg), np.shape(mach))
-        lam = np.broadcast_to(np.asarray(alpha_deg, dtype=float), shape)
+    def alpha_partials(self, lam: npt.ArrayLike, mach: npt.ArrayLike) -> ShareAlpha:
+        """The angle of attack (deg) of lift shares ``lam`` at Mach numbers ``mach`` with its
+        partials, from CL(alpha, M) = lam CL_ref(M): d alpha/d lam = CL_ref / CL_alpha and
+        d alpha/dM = (lam CL_ref' - CL_M) / CL_alpha (beyond the bounds, the extrapolation's)."""
+        shape = np.broadcast_shapes(np.shape(lam), np.shape(mach))
+        lam_a = np.broadcast_to(np.asarray(lam, dtype=float), shape)
         mach_a = np.broadcast_to(np.asarray(mach, dtype=float), shape)
-        alpha = self.alpha_of(lam, mach_a)
+        alpha = self.alpha_of(lam_a, mach_a)
         ref, ref_m = self.reference(mach_a)
         c = self.base.coefficients(alpha, mach_a)
-        slope_lo, slope_hi = self._end_slopes(mach_a)  # beyond the bounds: the extrapolation's
+        slope_lo, slope_hi = self._end_slopes(mach_a)
         slope = np.where(alpha > self.alpha_max_deg, slope_hi, c.dcl_dalpha)
         slope = np.where(alpha < self.alpha_min_deg, slope_lo, slope)
-        a_lam = ref / slope
-        a_mach = (lam * ref_m - c.dcl_dmach) / slope
+        return ShareAlpha(alpha, ref / slope, (lam_a * ref_m - c.dcl_dmach) / slope, ref, ref_m, c)
+
+    def coefficients(self, alpha_deg: npt.ArrayLike, mach: npt.ArrayLike) -> AeroCoefficients:
+        """CL = lam CL_ref(M), CD(alpha(lam, M), M) and their lam and Mach partials at lift share
+        ``alpha_deg`` (lam, see the class), through :meth:`alpha_partials`."""
+        shape = np.broadcast_shapes(np.shape(alpha_deg), np.shape(mach))
+        lam = np.broadcast_to(np.asarray(alpha_deg, dtype=float), shape)
+        share = self.alpha_partials(lam, mach)
+        ref, ref_m, c = share.reference, share.reference_mach, share.base
+        a_lam, a_mach = share.alpha_lam, share.alpha_mach
         return AeroCoefficients(
             cl=lam * ref,
             cd=c.cd,

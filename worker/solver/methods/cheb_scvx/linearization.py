@@ -5,12 +5,14 @@ the control points (paper 001 eqs. 26-29), path quantities in log form with thei
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from worker.solver.aero_models import LiftShareAero
 from worker.solver.constraints.log_path import log_path_rows
 from worker.solver.constraints.no_fly import zone_distance
+from worker.solver.forces import ForceTerms
 from worker.solver.methods.cheb_scvx.segments import Segments
 from worker.solver.models.lift_vector import (
     SHARE_FLOOR,
@@ -68,6 +70,7 @@ class ChebLinearization:
     heat: Array  # (Q,) heat rate W/m^2 (zeros without a heating model)
     heat_r: Array
     heat_v: Array
+    heat_u3: Array  # nonzero where a lift share sets the angle of a heating factor
     zones: list[ZoneLin]
     sample_y: Array  # (samples, 6) the reference between the points
     bank_rate: Array  # d sigma/dt at the control points and between samples (per nd time)
@@ -115,20 +118,47 @@ def between_states(segments: Segments, y: Array) -> Array:
     return np.concatenate(parts) if parts else np.zeros((0, 6))
 
 
-def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, Array, Array, Array]:
+@dataclass
+class HeatRate:
+    """The heat rate (W/m^2) at the control points with its partials in r, V and u3."""
+
+    value: Array
+    r: Array
+    v: Array
+    u3: Array
+
+
+def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, HeatRate]:
     """ln(p/p_max) of the active limits with partials in (r, V, u3), and the heat rate with its
-    (r, V) partials, at states ``y`` and lift vectors ``u``. The load factor is flown at
+    partials, at states ``y`` and lift vectors ``u``. The load factor is flown at
     lam = sqrt(u3) (an upper bound on |(u1, u2)| under the relaxation: the row is conservative);
     its u3 partial is taken in u3 itself, finite at lam = 0. A scheduled vehicle's limits are
-    those of its schedule's full lift (u3 moves nothing)."""
+    those of its schedule's full lift (u3 moves nothing). A lift share's heating factor
+    qa(alpha) is taken at alpha(lam, M), with the partials of alpha in lam and the Mach number
+    (the only place the lift share's own angle enters the path limits)."""
     forces = problem.forces
     law = lift_law(forces)
     polar = polar_of(forces)
     r, v = y[:, R], y[:, V]
     u3 = np.maximum(u[:, 2], 0.0)
     ft = forces.terms(r, v, None if law == "schedule" else np.sqrt(u3))
+    heat_model = problem.heat_model
+    alpha_r = alpha_u3 = None
+    if law == "share" and heat_model is not None and heat_model.alpha_polynomial:
+        ft, alpha_r, alpha_u3 = _share_angle_terms(problem, r, v, u3, ft)
     rows = log_path_rows(problem, r, v, ft)
+    pv = path_values(forces, heat_model, r, v, ft)
+    heat = HeatRate(pv.heat_rate, pv.heat_rate_r, pv.heat_rate_v, np.zeros_like(r))
     g_u3 = np.zeros_like(rows.g)
+    if heat_model is not None and alpha_r is not None and alpha_u3 is not None:
+        qa, qa_a = heat_model.alpha_factor(ft.alpha_deg)
+        factor = qa_a / qa  # d ln qa / d alpha
+        heat.r = heat.r + heat.value * factor * alpha_r
+        heat.u3 = heat.value * factor * alpha_u3
+        if "heat_rate" in rows.names:
+            j = rows.names.index("heat_rate")
+            rows.g_r[:, j] += factor * alpha_r
+            g_u3[:, j] = factor * alpha_u3
     if polar is not None and "load_factor" in rows.names:
         cls2 = polar.cl_star * polar.cl_star
         cd = polar.cd0 + polar.k_induced * cls2 * u3
@@ -144,13 +174,28 @@ def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, Array,
         g_u3[:, rows.names.index("load_factor")] = (
             0.5 * ref * ref + 0.5 * ft.cd * cd_lam / lam
         ) / (ft.cl * ft.cl + ft.cd * ft.cd)
-    pv = path_values(forces, problem.heat_model, r, v, ft)
-    return (
-        PathLog(rows.names, rows.g, rows.g_r, rows.g_v, g_u3),
-        pv.heat_rate,
-        pv.heat_rate_r,
-        pv.heat_rate_v,
-    )
+    return PathLog(rows.names, rows.g, rows.g_r, rows.g_v, g_u3), heat
+
+
+def _share_angle_terms(
+    problem: EntryProblem, r: Array, v: Array, u3: Array, ft: ForceTerms
+) -> tuple[ForceTerms, Array, Array]:
+    """``ft`` with the lift share's angle of attack alpha(lam, M) in place of lam and its speed
+    partial (through the Mach number), and alpha's partials in r (through the Mach number) and
+    in u3 = lam^2 (floored where lam is)."""
+    aero = problem.forces.aero
+    assert isinstance(aero, LiftShareAero)
+    sc = problem.scales
+    sound, sound_h = problem.forces.atmosphere.speed_of_sound((r - 1.0) * sc.radius_m)
+    v_dim = v * sc.speed_m_s
+    mach = v_dim / sound
+    lam = np.maximum(np.sqrt(u3), SHARE_FLOOR)
+    share = aero.alpha_partials(lam, mach)
+    mach_v = sc.speed_m_s / sound
+    mach_r = -v_dim / (sound * sound) * sound_h * sc.radius_m
+    alpha_v = share.alpha_mach * mach_v
+    moved = replace(ft, alpha_deg=share.alpha_deg, alpha_v=alpha_v)
+    return moved, share.alpha_mach * mach_r, share.alpha_lam / (2.0 * lam)
 
 
 def linearize(
@@ -160,7 +205,7 @@ def linearize(
     ys = it.y[segments.state_of_control]
     d = lift_vector_dynamics(ys, it.u, problem.forces, problem.omega, model)
     assert d.A is not None and d.B is not None
-    path, heat, heat_r, heat_v = path_log(problem, ys, it.u)
+    path, heat = path_log(problem, ys, it.u)
     sample_y = between_states(segments, it.y)
     every = np.vstack([it.y, sample_y])
     zones = []
@@ -173,6 +218,6 @@ def linearize(
         else np.zeros(segments.rate_rows)
     )
     return ChebLinearization(
-        d.f, d.A, d.B, defects(segments, it, d.f), path, heat, heat_r, heat_v, zones, sample_y,
-        rates,
+        d.f, d.A, d.B, defects(segments, it, d.f), path, heat.value, heat.r, heat.v, heat.u3,
+        zones, sample_y, rates,
     )  # fmt: skip

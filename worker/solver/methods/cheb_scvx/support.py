@@ -42,13 +42,12 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         )
     hr = doc.path_constraints.heat_rate
     polar = doc.vehicle.aerodynamics.model == "parabolic_polar"
-    if hr is not None and hr.alpha_polynomial and (polar or optimized):
+    if hr is not None and hr.alpha_polynomial and polar:
         out.append(
             issue(
                 "path_constraints.heat_rate.alpha_polynomial",
-                f"{NAME} has no angle of attack for a heating factor when it shapes the lift "
-                "(a polar's normalized lift, an optimized angle of attack's lift share): only "
-                "a scheduled angle of attack",
+                f"{NAME} has no angle of attack for a heating factor on a parabolic polar "
+                "vehicle (its normalized lift has none): give CL, CD in the angle of attack",
             )
         )
     for key in ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s",
