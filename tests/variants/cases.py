@@ -39,6 +39,7 @@ REQUIRED: frozenset[str] = frozenset(
         "cheb-cavh-waypoints",
         "cheb-shuttle-max-crossrange",
         "cheb-shuttle-max-crossrange-heat-limited",
+        "cheb-shuttle-heat-rate-300k",
         "energy-hard-terminal",
         "energy-heat-rate-800",
         "energy-max-final-latitude",
