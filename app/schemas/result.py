@@ -68,7 +68,10 @@ class ObjectiveValue(_Record):
 
     name: str = Field(..., description="Objective term name, or weighted_sum for several terms.")
     value: Number = Field(
-        None, description="Value on the optimizer's nodes, in ``units``; null for weighted_sum."
+        None,
+        description="Value on the optimizer's nodes, in ``units``; for weighted_sum the sum of "
+        "weight x term value over the terms in their own units, max terms negated (what the "
+        "method minimized).",
     )
     units: str = Field(..., description="Unit of value and propagated_value (mixed for sums).")
     propagated_value: Number = Field(

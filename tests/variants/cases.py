@@ -63,6 +63,7 @@ REQUIRED: frozenset[str] = frozenset(
         "foh-us76",
         "foh-us76-final-time-1650",
         "hp-paper-zones",
+        "hp-weighted-j0",
     }
 )
 """Variants that succeed within ``TOLERANCE`` and verified feasible today (they cannot regress)."""

@@ -73,9 +73,20 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
     return reasons
 
 
-def _objective(terms: dict[str, float], report: dict[str, Any] | None) -> dict[str, Any]:
-    """The result's objective entry: the method's terms, and the propagated heat load when the
-    objective is the heat load and the verification ran."""
+def weighted_sum(terms: dict[str, float], weights: dict[str, float]) -> float | None:
+    """sum of weight x value over the terms, max terms negated (what the method minimized, in
+    the terms' own units: s, m/s, deg, J/m^2); None when a term's value is missing."""
+    if set(terms) != set(weights):
+        return None
+    return sum((-1.0 if n.startswith("max") else 1.0) * weights[n] * v for n, v in terms.items())
+
+
+def _objective(
+    terms: dict[str, float], report: dict[str, Any] | None, weights: dict[str, float]
+) -> dict[str, Any]:
+    """The result's objective entry: the method's terms (and their weighted sum when there are
+    several), and the propagated heat load when the objective is the heat load and the
+    verification ran."""
     single = len(terms) == 1
     name = next(iter(terms)) if single else "weighted_sum"
     propagated = (
@@ -83,7 +94,7 @@ def _objective(terms: dict[str, float], report: dict[str, Any] | None) -> dict[s
     )
     return {
         "name": name,
-        "value": next(iter(terms.values())) if single else None,
+        "value": next(iter(terms.values())) if single else weighted_sum(terms, weights),
         "units": UNITS.get(name, "mixed"),
         "propagated_value": propagated,
         "terms": terms,
@@ -230,7 +241,8 @@ def solve_problem(
     if outcome.trajectory is not None:
         traj = outcome.trajectory
         columns = trajectory_columns(model, traj)
-        document["objective"] = _objective(outcome.objective_terms, None)
+        weights = {term.name: term.weight for term in model.objective}
+        document["objective"] = _objective(outcome.objective_terms, None, weights)
         broken = non_finite_entries({"trajectory": columns, "objective": document["objective"]})
         if broken:
             _fail(document, _broken_code(outcome.failure_code), _broken_message(failure, broken))
@@ -245,7 +257,7 @@ def solve_problem(
                 report = None
             verification_s = time.perf_counter() - v_start
             document["verification"] = report
-            document["objective"] = _objective(outcome.objective_terms, report)
+            document["objective"] = _objective(outcome.objective_terms, report, weights)
             last = outcome.last_record
             violations = (
                 node_violations(model, traj, last)

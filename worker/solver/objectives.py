@@ -32,6 +32,7 @@ UNITS = {
     "max_final_longitude": "deg",
     "min_final_longitude": "deg",
     "max_terminal_velocity": "m/s",
+    "min_control_effort": "deg",
 }
 
 

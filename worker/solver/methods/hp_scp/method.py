@@ -23,7 +23,7 @@ from scipy.integrate import solve_ivp
 
 from app.schemas.methods.hp_scp import HpScpOptions
 from worker.solver.conic import ConeProblem, ConicSolution
-from worker.solver.methods.base import MethodResult, RunHooks, run_method
+from worker.solver.methods.base import FINAL_EXTREMES, MethodResult, RunHooks, run_method
 from worker.solver.methods.hp_scp.linearization import (
     PHI,
     THETA,
@@ -41,6 +41,7 @@ from worker.solver.methods.hp_scp.subproblem import (
     ObjectiveWeights,
     Units,
     build,
+    effort_integral,
     model_curvature,
     slacked_multipliers,
     step_of,
@@ -58,6 +59,8 @@ from worker.solver.transcription.cgl_collocation import CollocationPattern, Poly
 from worker.solver.transcription.terminal import TerminalRow, terminal_rows
 
 Array = np.ndarray
+EFFORT_UNIT_DEG = 0.5
+"""Trust unit of the control effort (deg of attitude motion), as of the final latitude."""
 GUESS_BANK_SHARE = 0.375
 """Default guess bank: this share of the bank range's half-width above its middle."""
 FINAL_TIME_UNIT_S = 10.0
@@ -296,24 +299,41 @@ class HpScp:
         return HpIterate(z, np.zeros((z.shape[0], 2)), tf, self.pattern)
 
     def _objective(self) -> ObjectiveWeights:
-        """Linear weights of the objective terms, each per trust unit of what it measures (the
-        final time's 10 s, the final latitude's or longitude's 0.5 deg, the speed's 50 m/s), so
-        that the objective pulls the steps as strongly as the trust penalty holds them; max
-        terms negated."""
+        """Weights of the objective terms, scaled so that the objective pulls the steps as
+        strongly as the trust penalty holds them: a single term per trust unit of what it
+        measures (the final time's 10 s, the final latitude's or longitude's 0.5 deg, the
+        speed's 50 m/s, the control effort's 0.5 deg); several terms keep the caller's
+        weights between them in SI units (s, m/s, deg) under one common factor, the largest
+        weight over the largest weight x trust unit. Max terms negated."""
         p = self.problem
-        u = self.units
+        u, sc = self.units, self.problem.scales
+        per_unit = {  # each term's trust unit in SI (the unit of its value)
+            "min_time": u.t * sc.time_s,
+            "max_terminal_velocity": u.z[V] * sc.speed_m_s,
+            "min_control_effort": EFFORT_UNIT_DEG,
+        }
+        for name in FINAL_EXTREMES:
+            index = PHI if name.endswith("latitude") else THETA
+            per_unit[name] = math.degrees(u.z[index])
+        terms = list(p.objective)
+        common = 1.0
+        if len(terms) > 1:
+            common = max(t.weight for t in terms) / max(t.weight * per_unit[t.name] for t in terms)
         final = np.zeros(8)
-        tf = 0.0
-        for term in p.objective:
+        tf = effort = 0.0
+        for term in terms:
+            pull = term.weight if len(terms) == 1 else common * term.weight * per_unit[term.name]
             if term.name == "min_time":
-                tf += term.weight / u.t
+                tf += pull / u.t
             elif term.name == "max_terminal_velocity":
-                final[V] -= term.weight / u.z[V]
+                final[V] -= pull / u.z[V]
+            elif term.name == "min_control_effort":
+                effort += pull / math.radians(EFFORT_UNIT_DEG)
             elif term.name.endswith("final_latitude") or term.name.endswith("final_longitude"):
                 sign = -1.0 if term.name.startswith("max") else 1.0
                 index = PHI if term.name.endswith("latitude") else THETA
-                final[index] += sign * term.weight / u.z[index]
-        return ObjectiveWeights(tf, final)
+                final[index] += sign * pull / u.z[index]
+        return ObjectiveWeights(tf, final, effort)
 
     # -- the driver's hooks --------------------------------------------------------------
     def linearize(self, reference: HpIterate) -> Linearization:
@@ -456,9 +476,19 @@ class HpScp:
         return c
 
     def _linear_objective(self, ref: HpIterate) -> float:
-        """The objective terms' linear part on ``ref`` (per trust unit)."""
+        """The objective terms on ``ref`` (per trust unit): linear in the final time and the
+        last point, and the control effort's product t_f S exactly."""
         assert self.objective is not None
-        return self.objective.tf * ref.tf + float(self.objective.final @ ref.z[-1])
+        f = self.objective.tf * ref.tf + float(self.objective.final @ ref.z[-1])
+        if self.objective.effort:
+            f += self.objective.effort * effort_integral(ref)
+        return f
+
+    def _effort_anchor(self, ref: HpIterate) -> float:
+        """What the subproblem's effort columns cost at the reference (their absolute values
+        are in q x; subtracted to make q x a change)."""
+        assert self.objective is not None
+        return self.objective.effort * effort_integral(ref) if self.objective.effort else 0.0
 
     def objective_value(self, ref: HpIterate) -> float:
         """The linear objective (per trust unit) plus the rate regularization."""
@@ -572,6 +602,7 @@ class HpScp:
         new, candidate, corrections = self._corrected(reference, new, candidate)
         dz = new.z - reference.z
         predicted = self.objective_value(reference) + float(self.q @ x)
+        predicted -= self._effort_anchor(reference)
         predicted += model_curvature(self.P, x, self._trust_weight(), self.cols.steps)
         change = np.max(np.abs(dz), axis=0)
         slack = x[self.cols.nu_plus :]
@@ -729,6 +760,8 @@ class HpScp:
                 values[term.name] = math.degrees(float(ref.z[-1, PHI]))
             elif term.name.endswith("final_longitude"):
                 values[term.name] = math.degrees(float(ref.z[-1, THETA]))
+            elif term.name == "min_control_effort":
+                values[term.name] = math.degrees(effort_integral(ref))
         return values
 
 

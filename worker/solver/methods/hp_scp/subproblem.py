@@ -5,8 +5,9 @@ a quadratic trust-region penalty on every scaled change (paper 003 eqs. 52-60 in
 region form; the penalty weight is the globalization's).
 
 Variables, all scaled: point changes dz / u_z (K, 8), rate changes dw / u_w (K, 2), the final
-time's change dt_f / u_t, then the nonnegative virtual controls nu+ and nu- (K-1, 8), path
-slacks (L, K), zone slacks (Z, K) and terminal buffers (one per fixed condition).
+time's change dt_f / u_t, with a control-effort objective the rates' magnitudes e >= |w| / u_w
+(K, 2), then the nonnegative virtual controls nu+ and nu- (K-1, 8), path slacks (L, K), zone
+slacks (Z, K) and terminal buffers (one per fixed condition).
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ class Columns:
     L: int
     Z: int
     T: int
+    E: int = 0
+    """Effort columns: 2 K with a control-effort objective, else none."""
     rows: dict[str, int] = field(default_factory=dict, compare=False)
 
     @property
@@ -56,8 +59,12 @@ class Columns:
         return self.K * (NZ + NW)
 
     @property
-    def nu_plus(self) -> int:
+    def effort(self) -> int:
         return self.t + 1
+
+    @property
+    def nu_plus(self) -> int:
+        return self.effort + self.E
 
     @property
     def nu_minus(self) -> int:
@@ -103,6 +110,9 @@ class ObjectiveWeights:
 
     tf: float
     final: Array  # (8,) per unit of the nondimensional final state
+    effort: float = 0.0
+    """Weight of the control effort t_f sum_k W_k (|alpha'_k| + |sigma'_k|) (rad, the rates
+    per nondimensional time, W the mesh's quadrature weights on [0, 1])."""
 
 
 class _Rows:
@@ -148,7 +158,8 @@ def build(
     pat = ref.pattern
     K = pat.num_points
     soft = [t for t in terminal if t.kind == "soft"]
-    cols = Columns(K, lin.path.g.shape[0], lin.zone_c.shape[0], len(soft))
+    effort = objective.effort > 0.0
+    cols = Columns(K, lin.path.g.shape[0], lin.zone_c.shape[0], len(soft), 2 * K if effort else 0)
     uz, uw, ut = units.z, units.w, units.t
     eq, ineq = _Rows(), _Rows()
     A, B, S = lin.dyn.A, lin.dyn.B, lin.dyn.S
@@ -334,6 +345,16 @@ def build(
             np.concatenate([np.ones(idx.size), -np.ones(idx.size)]),
             np.concatenate([radius, radius]),
         )
+    if effort:  # e_kc >= |w_kc + u_w dw_kc| / u_w: two rows per rate
+        ecols = cols.effort + np.arange(K * NW)
+        wcols = cols.w + np.arange(K * NW)
+        rel = (ref.w / uw[None, :]).ravel()
+        ineq.add(
+            np.concatenate([np.arange(K * NW)] * 2 + [K * NW + np.arange(K * NW)] * 2),
+            np.concatenate([wcols, ecols, wcols, ecols]),
+            np.concatenate([np.ones(K * NW), -np.ones(K * NW), -np.ones(K * NW), -np.ones(K * NW)]),
+            np.concatenate([-rel, rel]),
+        )
     # every slack nonnegative
     first_slack = cols.nu_plus
     n_slack = cols.n - first_slack
@@ -353,6 +374,12 @@ def build(
     q = np.zeros(cols.n)
     q[cols.t] = objective.tf * ut
     q[cols.z(last, a_idx)] += objective.final * uz
+    if effort:  # C (t_f S + S_bar (t_f - t_f_bar)), S = sum W |w|: the product linearized
+        weights = ref.pattern.mesh.quadrature_weights(0.0, 1.0)
+        q[cols.effort : cols.effort + K * NW] = (
+            objective.effort * ref.tf * (weights[:, None] * uw[None, :]).ravel()
+        )
+        q[cols.t] += objective.effort * effort_integral(ref) / ref.tf * ut
     q[first_slack : cols.terminal] = weight_virtual
     # a fixed condition's buffer is virtual control; a soft condition costs its own weight
     q[cols.terminal :] = [weight_virtual if t.virtual else t.weight for t in soft]
@@ -454,6 +481,13 @@ def slacked_multipliers(y: Array, cols: Columns, weight: float) -> float:
         pairs = y[t0 : t0 + 2 * cols.T]
         largest = max(largest, float(np.max(np.abs(pairs[0::2] - pairs[1::2]))))
     return largest
+
+
+def effort_integral(ref: HpIterate) -> float:
+    """t_f sum_k W_k (|alpha'_k| + |sigma'_k|): the integral of the rates' magnitudes over the
+    flight (rad; the mesh's composite Clenshaw-Curtis weights W on [0, 1])."""
+    weights = ref.pattern.mesh.quadrature_weights(0.0, 1.0)
+    return ref.tf * float(weights @ np.sum(np.abs(ref.w), axis=1))
 
 
 def step_of(x: Array, cols: Columns, units: Units) -> tuple[Array, Array, float]:

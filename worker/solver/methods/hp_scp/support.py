@@ -12,7 +12,7 @@ from worker.solver.methods.base import (
 )
 
 NAME = "hp-scp"
-OBJECTIVES = ("min_time", "max_terminal_velocity", *FINAL_EXTREMES)
+OBJECTIVES = ("min_time", "max_terminal_velocity", "min_control_effort", *FINAL_EXTREMES)
 
 
 def check_support(doc: ProblemDocument) -> list[FieldIssue]:
