@@ -14,7 +14,6 @@ import pytest
 
 from app.schemas import ProblemDocument
 from app.schemas.methods.hp_scp import HpScpOptions
-from worker.solver.api import weighted_sum
 from worker.solver.methods.hp_scp.linearization import HpIterate, linearize
 from worker.solver.methods.hp_scp.method import EFFORT_UNIT_DEG, HpScp
 from worker.solver.methods.hp_scp.subproblem import effort_integral
@@ -101,9 +100,3 @@ def test_the_subproblem_predicts_the_effort_to_first_order() -> None:
         errors.append(abs(method.objective_value(new) - predicted))
     assert errors[0] > 0.0
     assert errors[1] / errors[0] == pytest.approx(0.25, rel=1e-6)
-
-
-def test_a_weighted_sum_is_reported_with_max_terms_negated() -> None:
-    values = {"min_time": 10.0, "max_terminal_velocity": 5.0}
-    assert weighted_sum(values, {"min_time": 2.0, "max_terminal_velocity": 3.0}) == 5.0
-    assert weighted_sum(values, {"min_time": 2.0}) is None

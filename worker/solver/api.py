@@ -18,7 +18,7 @@ from worker.solver.diagnosis import BUDGET_CODES, advice, stall_note
 from worker.solver.finite import non_finite_entries
 from worker.solver.methods import METHODS, check_support
 from worker.solver.models.bank_state_compiled import compiled_parameters
-from worker.solver.objectives import UNITS
+from worker.solver.objectives import UNITS, weighted_sum
 from worker.solver.problem import build_problem
 from worker.solver.result import (
     node_violations,
@@ -71,14 +71,6 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
     if not report["feasible"] and not reasons:  # no check may fail unnamed
         reasons.append("the verification found the trajectory infeasible")
     return reasons
-
-
-def weighted_sum(terms: dict[str, float], weights: dict[str, float]) -> float | None:
-    """sum of weight x value over the terms, max terms negated (what the method minimized, in
-    the terms' own units: s, m/s, deg, J/m^2); None when a term's value is missing."""
-    if set(terms) != set(weights):
-        return None
-    return sum((-1.0 if n.startswith("max") else 1.0) * weights[n] * v for n, v in terms.items())
 
 
 def _objective(

@@ -54,6 +54,7 @@ from worker.solver.methods.cheb_scvx.subproblem import (
 from worker.solver.models.layout import POINT_MASS
 from worker.solver.models.lift_vector import PlanetModel, lift_law
 from worker.solver.models.point_mass import PH, TH, V
+from worker.solver.objectives import term_pulls
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.history import IterationRecord, solver_fields
@@ -168,8 +169,9 @@ class ChebScvx:
         ]
         obj_time, obj_heat = 0.0, 0.0
         obj_state: dict[int, float] = {}
-        for term in p.objective:
-            w = term.weight
+        terms = list(p.objective)
+        units = [HEAT_LOAD_UNIT if t.name == "min_heat_load" else 1.0 for t in terms]
+        for term, w in zip(terms, term_pulls([t.weight for t in terms], units), strict=True):
             if term.name == "min_time":
                 obj_time += w * sc.time_s
             elif term.name == "min_heat_load":

@@ -15,6 +15,7 @@ from worker.solver.objectives import (
     RunningCost,
     energy_running_cost,
     energy_running_density,
+    term_pulls,
     trapezoid,
 )
 from worker.solver.problem import EntryProblem
@@ -61,6 +62,14 @@ class EnergyObjective:
             else:
                 idx, _ = TERMINAL_COSTS[term.name]
                 self.scale[term.name] = float(state_scale[idx]) / gain
+        terms = list(problem.objective)
+        units = [  # each term's SI value (J/m^2, s, deg) per normalized unit
+            self.scale[t.name] if t.name in RUNNING_COSTS else math.degrees(self.scale[t.name])
+            for t in terms
+        ]
+        pulls = term_pulls([t.weight for t in terms], units)
+        self.pull = {t.name: pull for t, pull in zip(terms, pulls, strict=True)}
+        """Each term's weight on its normalized value (``objectives.term_pulls``)."""
 
     def _running(self, name: str, x: Array, ed: EnergyDerivatives) -> RunningCost:
         """Running cost ``name`` on ``x`` (``ed`` is the dynamics at ``x``), cached per ``ed``."""
@@ -77,7 +86,7 @@ class EnergyObjective:
         run = np.zeros_like(x)
         term = np.zeros(x.shape[1])
         for t in self.problem.objective:
-            w = t.weight / self.scale[t.name]
+            w = self.pull[t.name] / self.scale[t.name]
             if t.name in RUNNING_COSTS:
                 run += w * self._running(t.name, x, ed).gradient
             else:

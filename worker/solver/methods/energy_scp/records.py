@@ -9,6 +9,7 @@ import numpy as np
 
 from worker.solver.conic import ConicSolution
 from worker.solver.models.layout import ENERGY
+from worker.solver.objectives import weighted_sum
 from worker.solver.scp.history import IterationRecord, solver_fields
 
 if TYPE_CHECKING:
@@ -40,13 +41,13 @@ def iteration_record(
         vc_norm += float(np.sum(sub.soft_slacks[virtual] / units))
     soft_weights = np.array([t.weight for t in tr.soft if not t.virtual])
     tr_slack = float(np.sum(sub.dx_scaled**2))
-    scales = method.objective.scale
+    weighted = weighted_sum(values, {t.name: t.weight for t in p.objective})
     record = IterationRecord(
         iteration=iteration,
         cost=(
             next(iter(values.values()))
             if len(values) == 1
-            else sum(t.weight * values[t.name] / scales[t.name] for t in p.objective)
+            else (weighted if weighted is not None else float("nan"))
         ),
         subproblem_cost=float(solution.objective if solution.objective is not None else np.nan),
         cost_terms={

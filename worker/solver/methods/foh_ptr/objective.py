@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from worker.solver.forces import ForceTerms
+from worker.solver.objectives import term_pulls
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
 
@@ -51,6 +52,24 @@ class TimeObjective:
                 ft = problem.forces.terms(z[:, 0], z[:, 3])
                 load = self._heat_load(z, s, ft)
                 self.heat_unit = 0.01 * load if load > 0 else 1.0
+        terms = list(problem.objective)
+        units = [self._unit(term.name) for term in terms]
+        self.pull = dict(
+            zip(
+                (t.name for t in terms),
+                term_pulls([t.weight for t in terms], units),
+                strict=True,
+            )
+        )
+        """Each term's weight on its normalized value (``objectives.term_pulls``)."""
+
+    def _unit(self, name: str) -> float:
+        """A term's SI value (m/s, deg, J/m^2) per unit of its normalized value."""
+        if name in TERMINAL_TERMS:
+            idx, _ = TERMINAL_TERMS[name]
+            scale = float(self.scale[idx])
+            return scale * self.problem.scales.speed_m_s if idx == 3 else math.degrees(scale)
+        return self.heat_unit
 
     def _heat(self, z: Array, ft: ForceTerms) -> tuple[Array, Array, Array]:
         if self.problem.heat_model is None:
@@ -70,12 +89,12 @@ class TimeObjective:
         for term in self.problem.objective:
             if term.name in TERMINAL_TERMS:
                 idx, sign = TERMINAL_TERMS[term.name]
-                grad_z[-1, idx] += term.weight * sign / self.scale[idx]
+                grad_z[-1, idx] += self.pull[term.name] * sign / self.scale[idx]
             else:
                 if ft is None:
                     ft = self.problem.forces.terms(z[:, 0], z[:, 3])
                 q, q_r, q_v = self._heat(z, ft)
-                c = term.weight * self.problem.scales.time_s / self.heat_unit
+                c = self.pull[term.name] * self.problem.scales.time_s / self.heat_unit
                 wk = node_weights(s)
                 grad_z[:, 0] += c * wk * q_r
                 grad_z[:, 3] += c * wk * q_v
@@ -104,7 +123,7 @@ class TimeObjective:
             if term.name in TERMINAL_TERMS:
                 idx, sign = TERMINAL_TERMS[term.name]
                 nd = v / sc.speed_m_s if idx == 3 else math.radians(v)
-                total += term.weight * sign * nd / self.scale[idx]
+                total += self.pull[term.name] * sign * nd / self.scale[idx]
             else:
-                total += term.weight * v / self.heat_unit
+                total += self.pull[term.name] * v / self.heat_unit
         return total

@@ -48,6 +48,7 @@ from worker.solver.methods.hp_scp.subproblem import (
 )
 from worker.solver.models.alpha_bank_state import ALPHA, SIGMA, alpha_bank_state_dynamics
 from worker.solver.models.layout import ALPHA_BANK_STATE
+from worker.solver.objectives import term_pulls
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.filter import NonMonotoneFilter
@@ -303,8 +304,8 @@ class HpScp:
         strongly as the trust penalty holds them: a single term per trust unit of what it
         measures (the final time's 10 s, the final latitude's or longitude's 0.5 deg, the
         speed's 50 m/s, the control effort's 0.5 deg); several terms keep the caller's
-        weights between them in SI units (s, m/s, deg) under one common factor, the largest
-        weight over the largest weight x trust unit. Max terms negated."""
+        weights between them in SI units (s, m/s, deg; ``objectives.term_pulls``). Max terms
+        negated."""
         p = self.problem
         u, sc = self.units, self.problem.scales
         per_unit = {  # each term's trust unit in SI (the unit of its value)
@@ -316,13 +317,10 @@ class HpScp:
             index = PHI if name.endswith("latitude") else THETA
             per_unit[name] = math.degrees(u.z[index])
         terms = list(p.objective)
-        common = 1.0
-        if len(terms) > 1:
-            common = max(t.weight for t in terms) / max(t.weight * per_unit[t.name] for t in terms)
+        pulls = term_pulls([t.weight for t in terms], [per_unit[t.name] for t in terms])
         final = np.zeros(8)
         tf = effort = 0.0
-        for term in terms:
-            pull = term.weight if len(terms) == 1 else common * term.weight * per_unit[term.name]
+        for term, pull in zip(terms, pulls, strict=True):
             if term.name == "min_time":
                 tf += pull / u.t
             elif term.name == "max_terminal_velocity":
