@@ -15,7 +15,7 @@ from app.schemas import ProblemDocument
 from worker.solver.methods.cheb_scvx.method import ChebScvx
 from worker.solver.methods.energy_scp.method import EnergyScp
 from worker.solver.methods.foh_ptr.method import FohPtr
-from worker.solver.objectives import term_pulls, weighted_sum
+from worker.solver.objective_weights import term_pulls, weighted_sum
 from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario
 

@@ -18,7 +18,8 @@ from worker.solver.diagnosis import BUDGET_CODES, advice, stall_note
 from worker.solver.finite import non_finite_entries
 from worker.solver.methods import METHODS, check_support
 from worker.solver.models.bank_state_compiled import compiled_parameters
-from worker.solver.objectives import UNITS, weighted_sum
+from worker.solver.objective_weights import weighted_sum
+from worker.solver.objectives import UNITS
 from worker.solver.problem import build_problem
 from worker.solver.result import (
     node_violations,

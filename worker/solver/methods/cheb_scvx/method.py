@@ -54,7 +54,7 @@ from worker.solver.methods.cheb_scvx.subproblem import (
 from worker.solver.models.layout import POINT_MASS
 from worker.solver.models.lift_vector import PlanetModel, lift_law
 from worker.solver.models.point_mass import PH, TH, V
-from worker.solver.objectives import term_pulls
+from worker.solver.objective_weights import term_pulls
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.history import IterationRecord, solver_fields

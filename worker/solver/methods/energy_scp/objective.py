@@ -9,13 +9,13 @@ import math
 import numpy as np
 
 from worker.solver.models.point_mass import EnergyDerivatives, EnergyRates
+from worker.solver.objective_weights import term_pulls
 from worker.solver.objectives import (
     RUNNING_COSTS,
     TERMINAL_COSTS,
     RunningCost,
     energy_running_cost,
     energy_running_density,
-    term_pulls,
     trapezoid,
 )
 from worker.solver.problem import EntryProblem
@@ -69,7 +69,7 @@ class EnergyObjective:
         ]
         pulls = term_pulls([t.weight for t in terms], units)
         self.pull = {t.name: pull for t, pull in zip(terms, pulls, strict=True)}
-        """Each term's weight on its normalized value (``objectives.term_pulls``)."""
+        """Each term's weight on its normalized value (``objective_weights.term_pulls``)."""
 
     def _running(self, name: str, x: Array, ed: EnergyDerivatives) -> RunningCost:
         """Running cost ``name`` on ``x`` (``ed`` is the dynamics at ``x``), cached per ``ed``."""

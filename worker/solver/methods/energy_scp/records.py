@@ -9,7 +9,7 @@ import numpy as np
 
 from worker.solver.conic import ConicSolution
 from worker.solver.models.layout import ENERGY
-from worker.solver.objectives import weighted_sum
+from worker.solver.objective_weights import weighted_sum
 from worker.solver.scp.history import IterationRecord, solver_fields
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from worker.solver.forces import ForceTerms
-from worker.solver.objectives import term_pulls
+from worker.solver.objective_weights import term_pulls
 from worker.solver.path_limits import path_values
 from worker.solver.problem import EntryProblem
 
@@ -61,7 +61,7 @@ class TimeObjective:
                 strict=True,
             )
         )
-        """Each term's weight on its normalized value (``objectives.term_pulls``)."""
+        """Each term's weight on its normalized value (``objective_weights.term_pulls``)."""
 
     def _unit(self, name: str) -> float:
         """A term's SI value (m/s, deg, J/m^2) per unit of its normalized value."""

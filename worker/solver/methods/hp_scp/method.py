@@ -48,7 +48,7 @@ from worker.solver.methods.hp_scp.subproblem import (
 )
 from worker.solver.models.alpha_bank_state import ALPHA, SIGMA, alpha_bank_state_dynamics
 from worker.solver.models.layout import ALPHA_BANK_STATE
-from worker.solver.objectives import term_pulls
+from worker.solver.objective_weights import term_pulls
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.filter import NonMonotoneFilter
@@ -304,7 +304,7 @@ class HpScp:
         strongly as the trust penalty holds them: a single term per trust unit of what it
         measures (the final time's 10 s, the final latitude's or longitude's 0.5 deg, the
         speed's 50 m/s, the control effort's 0.5 deg); several terms keep the caller's
-        weights between them in SI units (s, m/s, deg; ``objectives.term_pulls``). Max terms
+        weights between them in SI units (s, m/s, deg; ``objective_weights.term_pulls``). Max terms
         negated."""
         p = self.problem
         u, sc = self.units, self.problem.scales
