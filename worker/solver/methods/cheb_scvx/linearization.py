@@ -143,14 +143,16 @@ def path_log(problem: EntryProblem, y: Array, u: Array) -> tuple[PathLog, HeatRa
     u3 = np.maximum(u[:, 2], 0.0)
     ft = forces.terms(r, v, None if law == "schedule" else np.sqrt(u3))
     heat_model = problem.heat_model
-    alpha_r = alpha_u3 = None
+    angle: tuple[Array, Array] | None = None  # alpha's r and u3 partials where qa needs them
     if law == "share" and heat_model is not None and heat_model.alpha_polynomial:
-        ft, alpha_r, alpha_u3 = _share_angle_terms(problem, r, v, u3, ft)
+        ft, *partials = _share_angle_terms(problem, r, v, u3, ft)
+        angle = (partials[0], partials[1])
     rows = log_path_rows(problem, r, v, ft)
     pv = path_values(forces, heat_model, r, v, ft)
     heat = HeatRate(pv.heat_rate, pv.heat_rate_r, pv.heat_rate_v, np.zeros_like(r))
     g_u3 = np.zeros_like(rows.g)
-    if heat_model is not None and alpha_r is not None and alpha_u3 is not None:
+    if heat_model is not None and angle is not None:
+        alpha_r, alpha_u3 = angle
         qa, qa_a = heat_model.alpha_factor(ft.alpha_deg)
         factor = qa_a / qa  # d ln qa / d alpha
         heat.r = heat.r + heat.value * factor * alpha_r

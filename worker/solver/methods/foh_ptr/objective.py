@@ -53,14 +53,8 @@ class TimeObjective:
                 load = self._heat_load(z, s, ft)
                 self.heat_unit = 0.01 * load if load > 0 else 1.0
         terms = list(problem.objective)
-        units = [self._unit(term.name) for term in terms]
-        self.pull = dict(
-            zip(
-                (t.name for t in terms),
-                term_pulls([t.weight for t in terms], units),
-                strict=True,
-            )
-        )
+        pulls = term_pulls([t.weight for t in terms], [self._unit(t.name) for t in terms])
+        self.pull = {t.name: pull for t, pull in zip(terms, pulls, strict=True)}
         """Each term's weight on its normalized value (``objective_weights.term_pulls``)."""
 
     def _unit(self, name: str) -> float:

@@ -379,7 +379,7 @@ def build(
         q[cols.effort : cols.effort + K * NW] = (
             objective.effort * ref.tf * (weights[:, None] * uw[None, :]).ravel()
         )
-        q[cols.t] += objective.effort * effort_integral(ref) / ref.tf * ut
+        q[cols.t] += objective.effort * float(weights @ np.sum(np.abs(ref.w), axis=1)) * ut
     q[first_slack : cols.terminal] = weight_virtual
     # a fixed condition's buffer is virtual control; a soft condition costs its own weight
     q[cols.terminal :] = [weight_virtual if t.virtual else t.weight for t in soft]
