@@ -24,6 +24,7 @@ from app.schemas.limits import (
     MAX_NO_FLY_ZONES,
     MAX_NODES,
     MAX_OBJECTIVE_TERMS,
+    MAX_PHASES,
     MAX_POLYNOMIAL_COEFFICIENTS,
     MAX_TABLE_POINTS,
     MAX_TIME_LIMIT_S,
@@ -38,8 +39,10 @@ from app.schemas.methods import (
     MethodSpec,
 )
 from app.schemas.objective import Objective, ObjectiveName, ObjectiveTerm
+from app.schemas.phases import AngleBounds, DurationBounds, Phase
 from app.schemas.planet import Atmosphere, ExponentialAtmosphere, Planet, US76Atmosphere
 from app.schemas.problem import SCHEMA_VERSION, ProblemDocument
+from app.schemas.propulsion import STANDARD_GRAVITY_M_S2, Propulsion
 from app.schemas.regions import NoFlyZone, Waypoint
 from app.schemas.state import (
     EnergyBounds,
@@ -71,6 +74,7 @@ __all__ = [
     "MAX_NODES",
     "MAX_NO_FLY_ZONES",
     "MAX_OBJECTIVE_TERMS",
+    "MAX_PHASES",
     "MAX_POLYNOMIAL_COEFFICIENTS",
     "MAX_TABLE_POINTS",
     "MAX_TIME_LIMIT_S",
@@ -79,11 +83,14 @@ __all__ = [
     "METHOD_OPTIONS",
     "RLV_MIN_HEAT_LOAD",
     "SCHEMA_VERSION",
+    "STANDARD_GRAVITY_M_S2",
     "Aerodynamics",
+    "AngleBounds",
     "AngleOfAttack",
     "Atmosphere",
     "ConstantAngleOfAttack",
     "ControlLimits",
+    "DurationBounds",
     "DynamicPressureLimit",
     "EnergyBounds",
     "EnergyScpOptions",
@@ -106,9 +113,11 @@ __all__ = [
     "OptimizedAngleOfAttack",
     "ParabolicPolarAerodynamics",
     "PathConstraints",
+    "Phase",
     "Planet",
     "PolynomialAerodynamics",
     "ProblemDocument",
+    "Propulsion",
     "RangeSpec",
     "SoftSpec",
     "StrictModel",

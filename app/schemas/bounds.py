@@ -56,6 +56,12 @@ WEIGHT_MAX: Final = 1e12
 """Largest weight of an objective term, a soft target or a method's penalty."""
 ENERGY_MAX: Final = 1e6
 """Largest magnitude of a nondimensional energy bound."""
+THRUST_MAX_N: Final = 1e8
+"""Largest thrust, N (the Saturn V's first stage gave 3.5e7)."""
+SPECIFIC_IMPULSE_S: Final = (1.0, 1e5)
+"""Specific impulse, s: from below a cold-gas thruster's (about 70 s) to past an ion engine's."""
+THRUST_LAG_MIN_S: Final = 1e-3
+"""Shortest positive time constant of a thrust lag, s (0 means no lag)."""
 
 
 def minimum(low: float) -> AfterValidator:

@@ -10,6 +10,9 @@ MAX_NO_FLY_ZONES: Final[int] = 20
 MAX_WAYPOINTS: Final[int] = 20
 """Most waypoints one problem may declare."""
 
+MAX_PHASES: Final[int] = 5
+"""Most phases one problem may declare."""
+
 MAX_NODES: Final[int] = 2000
 """Most discretization nodes a method may be asked for."""
 

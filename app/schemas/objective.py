@@ -19,6 +19,7 @@ ObjectiveName = Literal[
     "max_final_longitude",
     "min_final_longitude",
     "min_control_effort",
+    "min_propellant",
 ]
 """Names of the performance terms a method may be asked to optimize."""
 

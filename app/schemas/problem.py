@@ -10,13 +10,14 @@ from app.schemas.base import FieldProblem, StrictModel, Text, raise_problems
 from app.schemas.constraints import ControlLimits, PathConstraints
 from app.schemas.examples import RLV_MIN_HEAT_LOAD
 from app.schemas.guess import InitialGuess
-from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_WAYPOINTS
+from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_PHASES, MAX_WAYPOINTS
 from app.schemas.methods import MethodSpec, default_method_options
 from app.schemas.objective import ObjectiveInput
+from app.schemas.phases import Phase
 from app.schemas.planet import Planet
 from app.schemas.regions import NoFlyZone, Waypoint
 from app.schemas.state import EnergyBounds, FinalTime, FixedFinalTime, FreeFinalTime, InitialState
-from app.schemas.terminal import FixedSpec, RangeSpec, SoftSpec, TerminalConditions
+from app.schemas.terminal import FixedSpec, FreeSpec, RangeSpec, SoftSpec, TerminalConditions
 from app.schemas.vehicle import Vehicle
 
 SCHEMA_VERSION: Literal["1.0"] = "1.0"
@@ -59,6 +60,15 @@ class ProblemDocument(StrictModel):
     control_limits: ControlLimits = Field(
         default_factory=ControlLimits, description="Bank angle and control rate bounds."
     )
+    phases: list[Phase] = Field(
+        default_factory=list,
+        max_length=MAX_PHASES,
+        description=f"Linked legs of the flight, in order, at most {MAX_PHASES}; each has its own "
+        "duration bounds, end conditions, control bounds, thrust limit and path constraints. "
+        "Empty (the default): one phase, bounded by terminal, final_time, control_limits and "
+        "path_constraints. With phases, terminal and final_time stay free and energy is left "
+        "out: the last phase's end holds the final conditions.",
+    )
     no_fly_zones: list[NoFlyZone] = Field(
         default_factory=list,
         max_length=MAX_NO_FLY_ZONES,
@@ -92,6 +102,8 @@ class ProblemDocument(StrictModel):
             *self._waypoint_problems(),
             *self._final_time_problems(),
             *self._initial_bank_problems(),
+            *self._phase_problems(),
+            *self._propulsion_problems(),
         ]
         raise_problems("ProblemDocument", problems)
         return self
@@ -117,9 +129,14 @@ class ProblemDocument(StrictModel):
             )
         ]
 
+    def final_conditions(self) -> TerminalConditions:
+        """Conditions on the final state: ``terminal``, or the last phase's ``end`` with phases."""
+        return self.phases[-1].end if self.phases else self.terminal
+
     def target_point_deg(self) -> tuple[float, float] | None:
         """Final (latitude, longitude) in degrees when both are fixed or soft targets, else None."""
-        lat, lon = self.terminal.latitude_deg, self.terminal.longitude_deg
+        final = self.final_conditions()
+        lat, lon = final.latitude_deg, final.longitude_deg
         if isinstance(lat, FixedSpec | SoftSpec) and isinstance(lon, FixedSpec | SoftSpec):
             return lat.value, lon.value
         return None
@@ -222,3 +239,157 @@ class ProblemDocument(StrictModel):
                 )
             ]
         return []
+
+    def _phase_problems(self) -> list[FieldProblem]:
+        """With phases, the phases bound the flight: the document-wide final conditions, final
+        time and energy interval stay unset, and each phase's own bounds must be usable."""
+        if not self.phases:
+            return []
+        last = len(self.phases) - 1
+        problems = [
+            FieldProblem(
+                ("terminal", name),
+                "terminal_with_phases",
+                f"with phases, terminal.{name} must be free: give the final conditions as the "
+                f"last phase's end (phases[{last}].end.{name})",
+            )
+            for name, spec in self.terminal.specs().items()
+            if not isinstance(spec, FreeSpec)
+        ]
+        final = self.final_time
+        if isinstance(final, FixedFinalTime) or final.max_s is not None:
+            loc: tuple[str, ...] = (
+                ("final_time",) if isinstance(final, FixedFinalTime) else ("final_time", "max_s")
+            )
+            problems.append(
+                FieldProblem(
+                    loc,
+                    "final_time_with_phases",
+                    "with phases, final_time must be free without max_s: the flight time is the "
+                    "sum of the phases' durations, each bounded by its duration_s",
+                )
+            )
+        if self.energy is not None:
+            problems.append(
+                FieldProblem(
+                    ("energy",),
+                    "energy_with_phases",
+                    "with phases, energy must be left out: phases are flown in time, each "
+                    "bounded by its duration_s",
+                )
+            )
+        problems.extend(self._phase_attack_problems())
+        problems.extend(self._phase_name_problems())
+        problems.extend(self._phase_bank_problems())
+        problems.extend(self._phase_thrust_problems())
+        return problems
+
+    def _phase_attack_problems(self) -> list[FieldProblem]:
+        """Phases optimize the angle of attack: the vehicle's must be an optimized state."""
+        attack = self.vehicle.angle_of_attack
+        if attack is not None and attack.mode == "optimized":
+            return []
+        if attack is None:
+            reason = (
+                "a parabolic polar has none: give polynomial or table aerodynamics with an "
+                "optimized angle of attack"
+            )
+        else:
+            reason = (
+                f'give {{"mode": "optimized", "min_deg": ..., "max_deg": ...}} instead of '
+                f"{attack.mode!r}"
+            )
+        return [
+            FieldProblem(
+                ("vehicle", "angle_of_attack"),
+                "phases_need_optimized_alpha",
+                "with phases, vehicle.angle_of_attack must be optimized (phases optimize the "
+                "angle of attack per phase, within each phase's angle_of_attack_deg); " + reason,
+            )
+        ]
+
+    def _phase_name_problems(self) -> list[FieldProblem]:
+        first_index: dict[str, int] = {}
+        problems: list[FieldProblem] = []
+        for i, phase in enumerate(self.phases):
+            if phase.name in first_index:
+                problems.append(
+                    FieldProblem(
+                        ("phases", i, "name"),
+                        "duplicate_phase_name",
+                        f"phase name {phase.name!r} is already used by "
+                        f"phases[{first_index[phase.name]}]; names must be unique",
+                        phase.name,
+                    )
+                )
+            else:
+                first_index[phase.name] = i
+        return problems
+
+    def _phase_bank_problems(self) -> list[FieldProblem]:
+        """A phase's bank range, completed by control_limits where it gives no bound, must not be
+        empty."""
+        limits = self.control_limits
+        problems: list[FieldProblem] = []
+        for i, phase in enumerate(self.phases):
+            given = phase.bank_min_deg is not None, phase.bank_max_deg is not None
+            if all(given) or not any(given):  # both: the phase checks them; none: control_limits
+                continue
+            low, high = phase.bank_range_deg(limits.bank_lower_deg, limits.bank_max_deg)
+            if low < high:
+                continue
+            key = "bank_min_deg" if given[0] else "bank_max_deg"
+            other = "control_limits.bank_max_deg" if given[0] else "the control_limits lower bound"
+            problems.append(
+                FieldProblem(
+                    ("phases", i, key),
+                    "bank_limit",
+                    f"phases[{i}].{key} ({getattr(phase, key):g}) leaves an empty bank range "
+                    f"[{low:g}, {high:g}] deg with {other}; give both bank bounds of the phase",
+                    getattr(phase, key),
+                )
+            )
+        return problems
+
+    def _phase_thrust_problems(self) -> list[FieldProblem]:
+        """A phase's thrust needs an engine, and no more than it gives."""
+        engine = self.vehicle.propulsion
+        problems: list[FieldProblem] = []
+        for i, phase in enumerate(self.phases):
+            thrust = phase.thrust_max_n
+            if thrust is None or thrust == 0.0:
+                continue
+            if engine is None:
+                problems.append(
+                    FieldProblem(
+                        ("phases", i, "thrust_max_n"),
+                        "thrust_without_propulsion",
+                        f"phases[{i}].thrust_max_n ({thrust:g} N) asks for thrust, but the "
+                        "vehicle has no propulsion: give vehicle.propulsion, or 0 for a coast",
+                        thrust,
+                    )
+                )
+            elif thrust > engine.max_thrust_n:
+                problems.append(
+                    FieldProblem(
+                        ("phases", i, "thrust_max_n"),
+                        "thrust_limit",
+                        f"phases[{i}].thrust_max_n ({thrust:g} N) exceeds the engine's "
+                        f"vehicle.propulsion.max_thrust_n ({engine.max_thrust_n:g} N)",
+                        thrust,
+                    )
+                )
+        return problems
+
+    def _propulsion_problems(self) -> list[FieldProblem]:
+        """The propellant objective needs an engine that burns propellant."""
+        if "min_propellant" not in self.objective.names() or self.vehicle.propulsion is not None:
+            return []
+        return [
+            FieldProblem(
+                ("objective",),
+                "propellant_without_propulsion",
+                "the objective term min_propellant needs vehicle.propulsion: without an engine "
+                "no propellant is burnt",
+            )
+        ]

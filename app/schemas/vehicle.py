@@ -1,4 +1,5 @@
-"""The entry vehicle: mass, reference area, aerodynamics and the angle-of-attack law."""
+"""The entry vehicle: mass, reference area, aerodynamics, the angle-of-attack law and
+propulsion."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from app.schemas.base import (
     untagged_errors,
 )
 from app.schemas.limits import MAX_TABLE_POINTS
+from app.schemas.propulsion import Propulsion
 
 
 class VelocityScheduleAngleOfAttack(StrictModel):
@@ -163,8 +165,9 @@ class Vehicle(StrictModel):
         ...,
         gt=0,
         le=bounds.MASS_KG[1],
-        description=f"Vehicle mass, kg, in [{bounds.MASS_KG[0]:g}, {bounds.MASS_KG[1]:g}] "
-        "(constant during entry).",
+        description=f"Vehicle mass at the initial time, kg, in [{bounds.MASS_KG[0]:g}, "
+        f"{bounds.MASS_KG[1]:g}]; constant during entry unless propulsion is given (then it "
+        "falls as propellant burns).",
     )
     reference_area_m2: Annotated[float, bounds.minimum(bounds.REFERENCE_AREA_M2[0])] = Field(
         ...,
@@ -179,6 +182,11 @@ class Vehicle(StrictModel):
         description="Angle-of-attack law: schedule, table, constant or optimized. Required with "
         "polynomial or tabulated aerodynamics; left out with a parabolic polar, whose lift is "
         "set by the normalized lift lambda instead.",
+    )
+    propulsion: Propulsion | None = Field(
+        None,
+        description="Rocket engine (thrust, specific impulse, thrust lag, dry mass); none = an "
+        "unpowered glider of constant mass.",
     )
 
     @model_validator(mode="after")
@@ -199,6 +207,21 @@ class Vehicle(StrictModel):
                 "missing",
                 f"{self.aerodynamics.model} aerodynamics need an angle-of-attack law "
                 "(velocity_schedule, table, constant or optimized)",
+            )
+            raise_problems("Vehicle", [problem])
+        return self
+
+    @model_validator(mode="after")
+    def _dry_mass(self) -> Vehicle:
+        """The dry mass is what remains when the propellant is gone: below the initial mass."""
+        dry = self.propulsion.dry_mass_kg if self.propulsion is not None else None
+        if dry is not None and dry >= self.mass_kg:
+            problem = FieldProblem(
+                ("propulsion", "dry_mass_kg"),
+                "dry_mass_order",
+                f"dry_mass_kg ({dry:g} kg) must be below the vehicle's initial mass_kg "
+                f"({self.mass_kg:g} kg)",
+                dry,
             )
             raise_problems("Vehicle", [problem])
         return self

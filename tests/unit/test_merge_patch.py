@@ -179,6 +179,7 @@ def test_problem_document_unions() -> None:
         "planet.atmosphere": "model",
         **{f"terminal.{name}": "kind" for name in terminal},
         "final_time": "kind",
+        **{f"phases[].end.{name}": "kind" for name in terminal},
         "method": "name",
     }
     atmosphere = next(u for u in problem_unions() if u.location == "planet.atmosphere")

@@ -35,6 +35,7 @@ UNITS = {
     "min_final_longitude": "deg",
     "max_terminal_velocity": "m/s",
     "min_control_effort": "deg",
+    "min_propellant": "kg",
 }
 
 

@@ -4,6 +4,8 @@
 
 ``check_support`` refuses, with a field path and a reason, any feature of a problem that the
 chosen method cannot handle, so a request fails fast with 422 instead of deep in a worker.
+Phases and propulsion are refused here, from the method's capability flags, before the
+method's own checks (which assume a single-phase problem without propulsion).
 """
 
 from __future__ import annotations
@@ -44,11 +46,43 @@ def list_methods() -> list[dict[str, Any]]:
     return [info.describe() for info in METHODS.values()]
 
 
+_CAPABILITIES = (("phases", "phases"), ("vehicle.propulsion", "propulsion"))
+"""Each feature a method must declare: its field path and its ``MethodInfo`` flag."""
+
+
+def _scope(info: MethodInfo) -> str:
+    """What the method solves, as far as phases and propulsion go."""
+    phases = "phased or single-phase problems" if info.phases else "single-phase problems"
+    return f"{phases} {'with or without' if info.propulsion else 'without'} propulsion"
+
+
+def capability_issues(doc: ProblemDocument, info: MethodInfo) -> list[FieldIssue]:
+    """Phases and propulsion in ``doc`` that the method ``info`` does not handle."""
+    used = {"phases": bool(doc.phases), "propulsion": doc.vehicle.propulsion is not None}
+    out = []
+    for field, flag in _CAPABILITIES:
+        if not used[flag] or getattr(info, flag):
+            continue
+        able = [name for name, other in METHODS.items() if getattr(other, flag)]
+        which = f"{', '.join(able)}; " if able else ""
+        out.append(
+            issue(
+                field,
+                f"{info.name} solves {_scope(info)}; choose a method that handles {flag} "
+                f"({which}see GET /v1/methods)",
+            )
+        )
+    return out
+
+
 def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     """Issues that make ``doc`` unsolvable by its method (empty when it is fine)."""
     info = METHODS.get(doc.method.name)
     if info is None:
         return [issue("method.name", f"unknown method {doc.method.name!r}", "unknown_method")]
+    refused = capability_issues(doc, info)
+    if refused:  # the method's own checks would misread what it cannot fly
+        return refused
     out = list(info.check(doc))
     if doc.initial_guess is not None and doc.initial_guess.trajectory is None:
         out.append(
