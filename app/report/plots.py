@@ -90,6 +90,27 @@ def _overlay(
         )
 
 
+def _slope(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """d values / dt between samples, each run of increasing times on its own: a flight in
+    phases repeats the time where one phase hands over to the next (its control may jump)."""
+    out = np.full(values.shape, np.nan)
+    cuts = np.flatnonzero(np.diff(t) <= 0.0) + 1
+    for run in np.split(np.arange(t.size), cuts):
+        if run.size > 1:
+            out[run] = np.gradient(values[run], t[run])
+    return out
+
+
+def _phase_changes(ax: Axes, result: Result) -> None:
+    """A dotted vertical line where one phase of a flight in phases hands over to the next."""
+    nodes = _columns(result, "trajectory")
+    if "phase" in nodes and "time_s" in nodes:
+        changes = np.flatnonzero(np.diff(nodes["phase"]) != 0) + 1
+        for k, at in enumerate(nodes["time_s"][changes]):
+            label = None if k else "phase change"
+            ax.axvline(at, color="grey", linewidth=0.8, linestyle=":", label=label)
+
+
 def _limit(ax: Axes, value: float | None, label: str) -> None:
     """A dashed horizontal line at a limit, if there is one."""
     if value is not None and math.isfinite(value):
@@ -195,7 +216,7 @@ def _controls(fig: Figure, result: Result) -> None:
     bank.legend(loc="best", fontsize="small")
     if show_rate:  # the flown bank's slope between the propagation's samples
         rate_ax = axes.pop(0)
-        rate = np.gradient(flown["bank_deg"], flown["time_s"])
+        rate = _slope(flown["bank_deg"], flown["time_s"])
         rate_ax.plot(flown["time_s"], rate, label="propagated", **FLOWN_STYLE)
         limit = (limits.get("bank_rate_deg_s") or {}).get("limit")
         _limit(rate_ax, limit, "limits")
@@ -210,7 +231,7 @@ def _controls(fig: Figure, result: Result) -> None:
         alpha.set_ylabel(label)
     if show_alpha_rate:
         rate_ax = axes.pop(0)
-        rate = np.gradient(flown["alpha_deg"], flown["time_s"])
+        rate = _slope(flown["alpha_deg"], flown["time_s"])
         rate_ax.plot(flown["time_s"], rate, **FLOWN_STYLE)
         _limit(rate_ax, alpha_rate, "_")
         _limit(rate_ax, -alpha_rate if alpha_rate is not None else None, "_")
@@ -227,7 +248,9 @@ def _path_plot(name: str) -> Callable[[Figure, Result], None]:
         _overlay(ax, result, "time_s", column, y_factor=factor)
         peak = ((result.get("verification") or {}).get("path_maxima") or {}).get(column) or {}
         limit = peak.get("limit")
-        _limit(ax, None if limit is None else limit * factor, "limit")
+        phase = f" (phase {peak['phase']})" if peak.get("phase") else ""
+        _limit(ax, None if limit is None else limit * factor, f"limit{phase}")
+        _phase_changes(ax, result)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"{label} ({unit})")
         ratio = peak.get("ratio")
@@ -236,6 +259,30 @@ def _path_plot(name: str) -> Callable[[Figure, Result], None]:
         ax.legend(loc="best")
 
     return draw
+
+
+def _mass_thrust(fig: Figure, result: Result) -> None:
+    mass, thrust = fig.subplots(2, 1, sharex=True)
+    _overlay(mass, result, "time_s", "mass_kg", y_factor=1e-3)
+    mass.set_ylabel("mass (t)")
+    _overlay(thrust, result, "time_s", "thrust_n", y_factor=1e-3)
+    flown = _columns(result, "propagated")
+    if "thrust_command_n" in flown and "time_s" in flown:
+        thrust.plot(
+            flown["time_s"],
+            flown["thrust_command_n"] * 1e-3,
+            label="commanded",
+            color="grey",
+            linestyle="--",
+            linewidth=1.0,
+        )
+    thrust.set_ylabel("thrust (kN)")
+    thrust.set_xlabel("time (s)")
+    for ax in (mass, thrust):
+        _phase_changes(ax, result)
+    mass.legend(loc="best", fontsize="small")
+    thrust.legend(loc="best", fontsize="small")
+    fig.suptitle("Mass and thrust against time")
 
 
 def _convergence(fig: Figure, result: Result) -> None:
@@ -263,7 +310,7 @@ def _convergence(fig: Figure, result: Result) -> None:
         if len(values) == len(history):
             axes[0][1].semilogy(index, np.maximum(values, 1e-16), label=state)
     axes[0][1].set_ylabel("max state change (SI, deg)")
-    if changes:
+    if axes[0][1].get_legend_handles_labels()[0]:  # a state changed at every iteration
         axes[0][1].legend(fontsize="x-small", loc="best")
     virtual = series(lambda r: r.get("virtual_control_norm"))
     axes[1][0].semilogy(index, np.maximum(virtual, 1e-16), marker=".")
@@ -287,6 +334,7 @@ PLOTS: dict[str, Callable[[Figure, Result], None]] = {
     "states": _states,
     "controls": _controls,
     **{name: _path_plot(name) for name in PATH_PLOTS},
+    "mass-thrust": _mass_thrust,
     "convergence": _convergence,
 }
 """Every plot a result can have, by name, in the order they are listed."""
@@ -294,12 +342,15 @@ PLOTS: dict[str, Callable[[Figure, Result], None]] = {
 
 def available_plots(result: Result) -> list[str]:
     """The names of the plots ``result`` has data for: the trajectory's (when there is one),
-    each path quantity the problem defines, and the convergence (when there is a history)."""
+    each path quantity the problem defines, mass and thrust (with propulsion), and the
+    convergence (when there is a history)."""
     nodes = _columns(result, "trajectory")
     names: list[str] = []
     if nodes:
         names += ["altitude-velocity", "ground-track", "states", "controls"]
         names += [name for name, spec in PATH_PLOTS.items() if spec[0] in nodes]
+        if "mass_kg" in nodes and "thrust_n" in nodes:
+            names.append("mass-thrust")
     if result.get("history"):
         names.append("convergence")
     return names

@@ -240,6 +240,22 @@ class Trajectory(BaseModel):
     energy: list[Number] | None = Field(
         None, description="Normalized energy e = R0/r - V^2/(2 g0 R0) (1; energy methods)."
     )
+    mass_kg: list[Number] | None = Field(
+        None, description="Vehicle mass, kg (only with propulsion: it burns propellant)."
+    )
+    thrust_n: list[Number] | None = Field(
+        None,
+        description="Thrust acting, N (only with propulsion; it follows the command with the "
+        "thruster's lag, when it has one).",
+    )
+    thrust_command_n: list[Number] | None = Field(
+        None, description="Commanded thrust, N (only with propulsion)."
+    )
+    phase: list[int] | None = Field(
+        None,
+        description="Only for a flight in phases: the 0-based index of the phase each row "
+        "belongs to (a phase's last row and the next one's first share their time).",
+    )
 
 
 class Integrator(_Record):
@@ -282,8 +298,17 @@ class PathPeak(_Record):
     max: Number = Field(..., description="Peak value, the quantity's unit (W/m^2, Pa, g0).")
     at_time_s: Number = Field(..., description="When it peaks, s.")
     limit: Number = Field(None, description="The problem's limit, same unit (absent: none).")
-    ratio: Number = Field(None, description="max / limit (1).")
+    ratio: Number = Field(
+        None,
+        description="max / limit (1); in a flight in phases, the largest value / limit of "
+        "`phase`, the phase where it is largest.",
+    )
     within: bool | None = Field(None, description="max <= limit (1 + path_limit_relative).")
+    phase: str | None = Field(
+        None,
+        description="Only for a flight in phases (each with its own limits): the phase whose "
+        "limit is given, the one where value / limit is largest (max is the whole flight's).",
+    )
 
 
 class PathMaxima(_Record):
@@ -356,6 +381,33 @@ class WaypointPass(_Record):
     within: bool = Field(..., description="closest <= radius + no_fly_zone_deg.")
 
 
+class PhaseCheck(_Record):
+    """One phase of a flight in phases as propagated: when it ran and how its end met the
+    phase's end conditions."""
+
+    name: str = Field(..., description="The phase's name.")
+    start_time_s: Number = Field(..., description="When the phase starts, s.")
+    end_time_s: Number = Field(
+        ...,
+        description="When its propagation ended (its end time, unless the ground came first), s.",
+    )
+    reached_end: bool = Field(
+        ..., description="The propagation reached the phase's end (false: it hit the ground)."
+    )
+    end_state: StateValues = Field(
+        ...,
+        description="The propagated state at the phase's end (SI, degrees), with mass_kg "
+        "(propulsion) and thrust_n (a thrust that lags its command).",
+    )
+    end_error_vs_target: dict[str, TerminalCheck] = Field(
+        default_factory=dict,
+        description="Per state with an end condition in this phase: the miss of its target.",
+    )
+    within: bool = Field(
+        ..., description="Every fixed and range end condition of the phase met within tolerance."
+    )
+
+
 class PropagatedPath(Trajectory):
     """The propagated flight on the verification's dense grid (about 20 samples between nodes,
     thinned to at most about 1 000 rows with every reported peak kept): the same columns and
@@ -368,7 +420,9 @@ class Verification(_Record):
     """Propagation of the optimized controls through the nonlinear dynamics, and its checks."""
 
     feasible: bool = Field(
-        ..., description="Reached the end, hard targets, paths, zones and control limits met."
+        ...,
+        description="Reached the end, hard targets, paths, zones and control limits met (in "
+        "phases: every phase's end conditions too).",
     )
     reached_end: bool = Field(..., description="The propagation reached the trajectory's end.")
     integrator: Integrator
@@ -402,6 +456,12 @@ class Verification(_Record):
         None,
         description="The propagated flight between and at the nodes (what the checks read), "
         "as columns.",
+    )
+    phases: list[PhaseCheck] = Field(
+        default_factory=list,
+        description="Only for a flight in phases: each phase's propagated end against its end "
+        "conditions, in order (the last one's are also terminal_error_vs_target); a phase "
+        "the propagation never entered (the ground came first) is absent.",
     )
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -20,15 +20,20 @@ from worker.solver.methods import METHODS, check_support
 from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.objective_weights import weighted_sum
 from worker.solver.objectives import UNITS
-from worker.solver.problem import build_problem
+from worker.solver.phased_problem import PhasedProblem, build_phased_problem
+from worker.solver.problem import EntryProblem, build_problem
 from worker.solver.result import (
     node_violations,
+    phased_node_violations,
+    phased_trajectory_columns,
     provenance,
     trajectory_columns,
     validated,
 )
 from worker.solver.scp.history import IterationRecord
+from worker.solver.trajectory import OptimizedTrajectory, PhasedTrajectory
 from worker.solver.verification import VerificationStoppedError, verify
+from worker.solver.verification_phased import verify_phased
 from worker.solver.warmup import warm_up
 
 IterationCallback = Callable[[dict[str, Any]], None]
@@ -57,7 +62,8 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
             )
     for name, entry in report["path_maxima"].items():
         if "within" in entry and not entry["within"]:
-            reasons.append(f"{name} peaks at {entry['ratio']:.4f} of its limit")
+            where = f" (phase {entry['phase']})" if entry.get("phase") else ""
+            reasons.append(f"{name} peaks at {entry['ratio']:.4f} of its limit{where}")
     for zone in report["no_fly_zones"]:
         if not zone["within"]:
             reasons.append(
@@ -69,6 +75,13 @@ def _verification_failures(report: dict[str, Any]) -> list[str]:
                 f"the flown {name} reaches {entry['max']:.4g} at t = {entry['at_time_s']:.1f} s "
                 f"({entry['ratio']:.4f} of its limit {entry['limit']:g})"
             )
+    for phase in report.get("phases", [])[:-1]:  # the last phase's end is the terminal above
+        for name, entry in phase["end_error_vs_target"].items():
+            if entry["kind"] in ("fixed", "range") and not entry["within"]:
+                reasons.append(
+                    f"phase {phase['name']} ends with {name} off by {entry['error']:.4g} "
+                    f"(tolerance {entry['tolerance']:g})"
+                )
     if not report["feasible"] and not reasons:  # no check may fail unnamed
         reasons.append("the verification found the trajectory infeasible")
     return reasons
@@ -159,6 +172,42 @@ def _judge(
         )
 
 
+PHASED_DYNAMICS_NOTE = (
+    "the powered dynamics of a flight in phases (thrust and mass) have no compiled form; numpy code"
+)
+
+
+def _columns(
+    model: EntryProblem | PhasedProblem, traj: OptimizedTrajectory | PhasedTrajectory
+) -> dict[str, Any]:
+    """The trajectory's columns, of a flight in phases or of one phase."""
+    if isinstance(model, PhasedProblem):
+        return phased_trajectory_columns(model, cast(PhasedTrajectory, traj))
+    return trajectory_columns(model, cast(OptimizedTrajectory, traj))
+
+
+def _verify(
+    model: EntryProblem | PhasedProblem,
+    traj: OptimizedTrajectory | PhasedTrajectory,
+    should_stop: StopCheck | None,
+) -> dict[str, Any]:
+    """The verification report, of a flight in phases or of one phase."""
+    if isinstance(model, PhasedProblem):
+        return verify_phased(model, cast(PhasedTrajectory, traj), should_stop=should_stop)
+    return verify(model, cast(OptimizedTrajectory, traj), should_stop=should_stop)
+
+
+def _violations(
+    model: EntryProblem | PhasedProblem,
+    traj: OptimizedTrajectory | PhasedTrajectory,
+    last: IterationRecord | None,
+) -> list[str]:
+    """What the nodes do not meet, of a flight in phases or of one phase."""
+    if isinstance(model, PhasedProblem):
+        return phased_node_violations(model, cast(PhasedTrajectory, traj))
+    return node_violations(model, cast(OptimizedTrajectory, traj), last)
+
+
 def solve_problem(
     problem: ProblemDocument,
     *,
@@ -192,7 +241,12 @@ def solve_problem(
                 "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
             }
         )
-    model = build_problem(problem)
+    # a method that flies phases gets the phased model (one phase when the document gives none)
+    phased = METHODS[method].phases
+    model: EntryProblem | PhasedProblem = (
+        build_phased_problem(problem) if phased else build_problem(problem)
+    )
+    base = model.base if isinstance(model, PhasedProblem) else model
     streamed: list[IterationRecord] = []
 
     def forward(record: IterationRecord) -> None:
@@ -200,7 +254,11 @@ def solve_problem(
         if on_iteration is not None:
             on_iteration(json_ready(record.as_dict()))
 
-    if METHODS[method].warm_kernels and compiled_parameters(model.forces, model.omega) is not None:
+    if (
+        not phased
+        and METHODS[method].warm_kernels
+        and compiled_parameters(base.forces, base.omega) is not None
+    ):
         # loaded (or compiled) before the clock: wall_s is the optimization's own
         warm_up(on_compiling)
     if on_phase is not None:
@@ -209,7 +267,8 @@ def solve_problem(
     # a non-physical iterate's NaN or overflow is found and reported in the result (diverged,
     # numerical_error with where), not printed as a numpy warning on the caller's stderr
     with np.errstate(all="ignore"):
-        outcome = METHODS[method].run(model, problem.method, forward, should_stop)
+        # the runner hands the model on as it is: a phased method's run takes the phased one
+        outcome = METHODS[method].run(cast(Any, model), problem.method, forward, should_stop)
     wall = time.perf_counter() - scp_start
     status = _STATUS[outcome.status]
     failure = (
@@ -226,15 +285,17 @@ def solve_problem(
         "failure": failure,
         "method": method,
         "history": [r.as_dict() for r in history],
-        "provenance": provenance(model, problem.method),
+        "provenance": provenance(base, problem.method),
     }
+    if phased:
+        document["provenance"].update(dynamics="numpy", dynamics_note=PHASED_DYNAMICS_NOTE)
     if outcome.starts is not None:
         document["starts"] = outcome.starts
     verification_s = 0.0
     if outcome.trajectory is not None:
         traj = outcome.trajectory
-        columns = trajectory_columns(model, traj)
-        weights = {term.name: term.weight for term in model.objective}
+        columns = _columns(model, traj)
+        weights = {term.name: term.weight for term in base.objective}
         document["objective"] = _objective(outcome.objective_terms, None, weights)
         broken = non_finite_entries({"trajectory": columns, "objective": document["objective"]})
         if broken:
@@ -245,7 +306,7 @@ def solve_problem(
                 on_phase("verifying")
             v_start = time.perf_counter()
             try:
-                report: dict[str, Any] | None = verify(model, traj, should_stop=should_stop)
+                report: dict[str, Any] | None = _verify(model, traj, should_stop)
             except VerificationStoppedError:
                 report = None
             verification_s = time.perf_counter() - v_start
@@ -253,7 +314,7 @@ def solve_problem(
             document["objective"] = _objective(outcome.objective_terms, report, weights)
             last = outcome.last_record
             violations = (
-                node_violations(model, traj, last)
+                _violations(model, traj, last)
                 if outcome.status in ("converged", "max_iterations")
                 else []
             )

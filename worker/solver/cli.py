@@ -211,10 +211,24 @@ def _compiling_notice() -> None:
 
 
 def _progress(record: dict[str, Any]) -> None:
-    """One progress line per SCP iteration on stderr."""
+    """One progress line per SCP iteration (or generation of a global search) on stderr."""
+    extra = record.get("extra") or {}
+    if extra.get("stage") == "global_guess":
+        print(
+            f"guess {extra['algorithm']} generation {extra['generation']:3d}  best score "
+            f"{extra['best_score']:.6g}",
+            file=sys.stderr,
+            flush=True,
+        )
+        return
     change = record["max_state_change"]
     value = record.get("objective_value")
     shown = f"{value:.6g}" if isinstance(value, float) else "-"
+    if not change:  # the first iteration of a method that reports changes between iterates
+        change = dict.fromkeys(
+            ("altitude_m", "longitude_deg", "latitude_deg", "flight_path_angle_deg", "heading_deg"),
+            0.0,
+        )
     print(
         f"iter {record['iteration']:3d}  objective {shown:>12}  "
         f"dh {change['altitude_m']:9.1f} m  dlon {change['longitude_deg']:7.3f}  "

@@ -152,22 +152,8 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
     )
     omega = planet.rotation_rate_rad_s / scales.rate_rad_s if planet.rotation else 0.0
 
-    pc = doc.path_constraints
-    heat_model = None
-    if pc.heat_rate is not None:
-        hr = pc.heat_rate
-        heat_model = HeatRateModel(
-            k_q=hr.k_q,
-            velocity_exponent=hr.velocity_exponent,
-            density_exponent=hr.density_exponent,
-            alpha_polynomial=tuple(hr.alpha_polynomial) if hr.alpha_polynomial else None,
-        )
-    limits = PathLimits(
-        heat=heat_model,
-        heat_max_W_m2=pc.heat_rate.max_W_m2 if pc.heat_rate is not None else None,
-        dynamic_pressure_max_Pa=pc.dynamic_pressure.max_Pa if pc.dynamic_pressure else None,
-        load_factor_max_g=pc.load_factor.max_g if pc.load_factor else None,
-    )
+    limits = path_limits_from_spec(doc.path_constraints)
+    heat_model = limits.heat
 
     s0 = doc.initial_state
     y0 = np.array(
@@ -180,19 +166,7 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
             math.radians(s0.heading_deg),
         ]
     )
-    converters = {
-        "altitude_m": lambda h: 1.0 + float(h) / scales.radius_m,
-        "longitude_deg": lambda a: math.radians(float(a)),
-        "latitude_deg": lambda a: math.radians(float(a)),
-        "velocity_m_s": lambda v: float(v) / scales.speed_m_s,
-        "flight_path_angle_deg": lambda a: math.radians(float(a)),
-        "heading_deg": lambda a: math.radians(float(a)),
-    }
-    names = TIME_STATE_NAMES
-    terminal = {
-        name: _terminal_to_nd(getattr(doc.terminal, name), converters[name]) for name in names
-    }
-    terminal_si = {name: _terminal_as_given(getattr(doc.terminal, name)) for name in names}
+    terminal, terminal_si = terminal_targets(doc.terminal, scales)
     final_time = None
     if doc.final_time.kind == "fixed":
         final_time = (doc.final_time.value_s - s0.time_s) / scales.time_s
@@ -254,6 +228,44 @@ def build_problem(doc: ProblemDocument) -> EntryProblem:
             if doc.final_time.kind == "free" and doc.final_time.max_s is not None
             else None
         ),
+    )
+
+
+def terminal_targets(
+    conditions: Any, scales: Scales
+) -> tuple[dict[str, TerminalTarget], dict[str, TerminalTarget]]:
+    """Conditions on a final state (the document's ``terminal`` or a phase's ``end``), keyed by
+    ``TIME_STATE_NAMES``: nondimensional, and as given (SI and degrees)."""
+    converters = {
+        "altitude_m": lambda h: 1.0 + float(h) / scales.radius_m,
+        "longitude_deg": lambda a: math.radians(float(a)),
+        "latitude_deg": lambda a: math.radians(float(a)),
+        "velocity_m_s": lambda v: float(v) / scales.speed_m_s,
+        "flight_path_angle_deg": lambda a: math.radians(float(a)),
+        "heading_deg": lambda a: math.radians(float(a)),
+    }
+    names = TIME_STATE_NAMES
+    nd = {name: _terminal_to_nd(getattr(conditions, name), converters[name]) for name in names}
+    si = {name: _terminal_as_given(getattr(conditions, name)) for name in names}
+    return nd, si
+
+
+def path_limits_from_spec(pc: Any) -> PathLimits:
+    """The path limits of a document's (or a phase's) ``path_constraints``, SI."""
+    heat_model = None
+    if pc.heat_rate is not None:
+        hr = pc.heat_rate
+        heat_model = HeatRateModel(
+            k_q=hr.k_q,
+            velocity_exponent=hr.velocity_exponent,
+            density_exponent=hr.density_exponent,
+            alpha_polynomial=tuple(hr.alpha_polynomial) if hr.alpha_polynomial else None,
+        )
+    return PathLimits(
+        heat=heat_model,
+        heat_max_W_m2=pc.heat_rate.max_W_m2 if pc.heat_rate is not None else None,
+        dynamic_pressure_max_Pa=pc.dynamic_pressure.max_Pa if pc.dynamic_pressure else None,
+        load_factor_max_g=pc.load_factor.max_g if pc.load_factor else None,
     )
 
 

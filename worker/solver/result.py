@@ -16,12 +16,25 @@ from app.schemas.result import ResultDocument, json_ready
 from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.path_limits import path_values
+from worker.solver.phased_problem import PhasedProblem
 from worker.solver.problem import EntryProblem
 from worker.solver.scp.history import IterationRecord
 from worker.solver.scp.loop import VIRTUAL_CONTROL_TOL
-from worker.solver.trajectory import OptimizedTrajectory
+from worker.solver.trajectory import TIME_STATE_NAMES, OptimizedTrajectory, PhasedTrajectory
 from worker.solver.units import COLUMN_UNITS
-from worker.solver.verification import VerificationTolerances, lift_control_column
+from worker.solver.verification import (
+    VerificationTolerances,
+    lift_control_column,
+    terminal_error,
+    to_si,
+)
+from worker.solver.verification_phased import (
+    PATH_KEYS,
+    path_columns,
+    path_limit,
+    phase_path_values,
+    phased_columns,
+)
 
 PACKAGES = ("numpy", "scipy", "clarabel", "cvxpy", "pydantic", "entry-trajopt")
 
@@ -151,4 +164,91 @@ def node_violations(
         ratio = float(values[node]) / limit
         if ratio > 1.0 + tol.path_limit_relative:
             out.append(f"{label} {ratio:.4f} of its limit at t = {t_s[node]:.1f} s (node {node})")
+    return out
+
+
+def _phase_node_path(problem: PhasedProblem, traj: PhasedTrajectory) -> dict[str, np.ndarray]:
+    """The path quantities at every node, each under its own phase's heat model."""
+    out = {key: np.zeros(traj.t.size) for key in PATH_KEYS}
+    for p, phase in enumerate(problem.phases):
+        mask = traj.phase == p
+        if np.any(mask):
+            values = path_columns(phase_path_values(problem, phase, traj.x[mask], traj.u[mask]))
+            for key in PATH_KEYS:
+                out[key][mask] = values[key]
+    return out
+
+
+def phased_trajectory_columns(problem: PhasedProblem, traj: PhasedTrajectory) -> dict[str, Any]:
+    """The nodes of a flight in phases as named columns in SI units and degrees: those of
+    ``trajectory_columns``, then mass, thrust acting and commanded (with propulsion) and each
+    node's phase index."""
+    path = _phase_node_path(problem, traj)
+    columns = phased_columns(problem, traj.t, traj.x, traj.u, path, traj.phase)
+    cols: dict[str, Any] = {k: v.tolist() for k, v in columns.items()}
+    cols["units"] = {k: COLUMN_UNITS[k] for k in columns}
+    cols["nodes"] = int(traj.t.size)
+    return cols
+
+
+_PATH_LABELS = {
+    "heat_rate_W_m2": "heat rate",
+    "dynamic_pressure_Pa": "dynamic pressure",
+    "load_factor_g": "load factor",
+}
+
+
+def phased_node_violations(
+    problem: PhasedProblem,
+    traj: PhasedTrajectory,
+    tolerances: VerificationTolerances | None = None,
+) -> list[str]:
+    """What the reported nodes of a flight in phases do not meet, with the phase, where and by
+    how much: a no-fly zone entered, a path limit of the node's phase exceeded, or a fixed or
+    range end condition of a phase missed at its last node, by more than the verification
+    accepts (its margins)."""
+    tol = tolerances or VerificationTolerances()
+    sc = problem.base.scales
+    t_s = traj.t * sc.time_s + problem.base.t0
+    out: list[str] = []
+    x = traj.x
+    for k, zone in enumerate(problem.base.no_fly_zones):
+        clearance = np.degrees(zone_distance(x[:, 2], x[:, 1], zone).c - zone.radius)
+        node = int(np.argmin(clearance))
+        if clearance[node] < -tol.no_fly_zone_deg:
+            name = f" ({zone.name})" if zone.name else ""
+            out.append(
+                f"no-fly zone {k}{name} penetrated by {-clearance[node]:.3g} deg at "
+                f"t = {t_s[node]:.1f} s (node {node}, phase {int(traj.phase[node])})"
+            )
+    path = _phase_node_path(problem, traj)
+    for p, phase in enumerate(problem.phases):
+        nodes = np.flatnonzero(traj.phase == p)
+        if nodes.size == 0:
+            continue
+        where = f"phase {p} ({phase.name})"
+        for key, label in _PATH_LABELS.items():
+            limit = path_limit(phase, key)
+            if limit is None:
+                continue
+            node = int(nodes[np.argmax(path[key][nodes])])
+            ratio = float(path[key][node]) / limit
+            if ratio > 1.0 + tol.path_limit_relative:
+                out.append(
+                    f"{where}: {label} {ratio:.4f} of its limit at t = {t_s[node]:.1f} s "
+                    f"(node {node})"
+                )
+        end = int(nodes[-1])
+        final = to_si(problem.base, x[end, :6])
+        for name in TIME_STATE_NAMES:
+            spec = phase.end_si[name]
+            if spec.kind not in ("fixed", "range"):
+                continue
+            err = terminal_error(spec, final[name])
+            tolerance = getattr(tol, name)
+            if abs(err) > tolerance:
+                out.append(
+                    f"{where}: end {name} off by {err:.4g} (tolerance {tolerance:g}) at "
+                    f"t = {t_s[end]:.1f} s (node {end})"
+                )
     return out

@@ -93,3 +93,36 @@ def bank_profile(traj: OptimizedTrajectory, s: Any) -> float:
     dt = float(np.clip(s - grid[k], 0.0, h))
     w0, w1 = float(traj.bank_rate[k]), float(traj.bank_rate[k + 1])
     return float(bank[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
+
+
+class PhaseControls(Protocol):
+    """A phased method's controls between its nodes, as it represents them (e.g. a polynomial
+    per collocation segment), within the phase's control bounds."""
+
+    def at(self, phase: int, t: Array) -> Array:
+        """(len(t), n_controls) controls of ``phase`` at nondimensional times ``t`` (from the
+        flight's start): [alpha rad, bank rad] and, with propulsion, the commanded thrust."""
+        ...
+
+    def breaks(self, phase: int) -> Array:
+        """Times (nondimensional, from the flight's start) where ``phase``'s control pieces
+        meet, its start and end included: a propagation restarts there."""
+        ...
+
+
+@dataclass
+class PhasedTrajectory:
+    """The nodes of a flight in phases (paper 004), concatenated in time: a phase's last node
+    and the next phase's first node are both kept (same time, the controls may jump).
+
+    States are nondimensional (``units.Scales``): [r, theta, phi, V, gamma, psi], then the mass
+    relative to the initial mass and, when the thrust lags, the thrust in m0 g0. Controls are
+    [alpha rad, bank rad] and, with propulsion, the commanded thrust in m0 g0.
+    """
+
+    t: Array  # (K,) nondimensional time since the start
+    x: Array  # (K, n_states)
+    u: Array  # (K, n_controls)
+    phase: Array  # (K,) phase index of each node
+    bounds: list[tuple[float, float]]  # (start, end) time of each phase, nondimensional
+    controls: PhaseControls

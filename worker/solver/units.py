@@ -20,6 +20,10 @@ COLUMN_UNITS = {
     "dynamic_pressure_Pa": "Pa",
     "load_factor_g": "g0",
     "energy": "1 (e = R0/r - V^2/(2 g0 R0))",
+    "mass_kg": "kg",
+    "thrust_n": "N",
+    "thrust_command_n": "N",
+    "phase": "1",
 }
 """The unit of each named column of a trajectory (optimized nodes or the propagated flight)."""
 

@@ -62,7 +62,7 @@ class VerificationStoppedError(Exception):
     """The stop check answered true during the propagation (cancel or time limit)."""
 
 
-def _poller(should_stop: StopCheck | None) -> Callable[[], None]:
+def poller(should_stop: StopCheck | None) -> Callable[[], None]:
     """A cheap call for the right-hand side: asks ``should_stop`` at its first call, then at
     most every poll interval, and raises :class:`VerificationStoppedError` when it answers
     true."""
@@ -102,7 +102,7 @@ def _energy(y: Array) -> Array:
     return 1.0 / y[0] - 0.5 * y[3] ** 2
 
 
-def _terminal_error(spec: TerminalTarget, value: float) -> float:
+def terminal_error(spec: TerminalTarget, value: float) -> float:
     """Signed miss of ``value`` from a fixed or soft target, or its distance outside a range."""
     if spec.kind == "range":
         assert spec.lo is not None and spec.hi is not None
@@ -111,7 +111,7 @@ def _terminal_error(spec: TerminalTarget, value: float) -> float:
     return value - spec.value
 
 
-def _to_si(problem: EntryProblem, y: Array) -> dict[str, float]:
+def to_si(problem: EntryProblem, y: Array) -> dict[str, float]:
     """One time-form state in the API's units."""
     return {
         "altitude_m": float((y[0] - 1.0) * problem.scales.radius_m),
@@ -259,7 +259,7 @@ def propagate(
     """
     grid = traj.grid
     by_energy = traj.grid_kind == "energy"
-    rhs = _rhs(problem, traj, _poller(should_stop))
+    rhs = _rhs(problem, traj, poller(should_stop))
 
     def ground(t: float, y: Array) -> float:
         return float(y[0] - 1.0)
@@ -325,8 +325,8 @@ def verify(
     reached_end = sol.status == 1 and (len(sol.t_events) > 1 and sol.t_events[-1].size > 0)
     if traj.grid_kind == "time":
         reached_end = sol.status == 0
-    final_si = _to_si(problem, y_final)
-    opt_final_si = _to_si(problem, traj.y[-1])
+    final_si = to_si(problem, y_final)
+    opt_final_si = to_si(problem, traj.y[-1])
     tol_map = {name: getattr(tol, name) for name in TIME_STATE_NAMES}
 
     terminal_vs_target: dict[str, Any] = {}
@@ -336,7 +336,7 @@ def verify(
         value = final_si[name]
         if spec.kind == "free":
             continue
-        err = _terminal_error(spec, value)
+        err = terminal_error(spec, value)
         within = abs(err) <= tol_map[name]
         if spec.kind in ("fixed", "range"):
             hard_ok &= within
@@ -429,7 +429,7 @@ def verify(
 
     bank = bank_profile_at(traj, s_fine)  # the flown bank, read by the checks and the columns
     controls, controls_ok = _control_peaks(problem, traj, t_fine, s_fine, tol, bank)
-    waypoints, waypoints_ok = _waypoint_passes(problem, t_fine, y_fine, tol)
+    waypoints, waypoints_ok = waypoint_passes(problem, t_fine, y_fine, tol)
 
     heat_load = None
     if problem.heat_model is not None:
@@ -456,7 +456,7 @@ def verify(
     }
 
 
-def _waypoint_passes(
+def waypoint_passes(
     problem: EntryProblem, t_fine: Array, y_fine: Array, tol: VerificationTolerances
 ) -> tuple[list[dict[str, Any]], bool]:
     """Each waypoint's closest approach on the dense flown path, in order: it is passed when

@@ -19,12 +19,14 @@ from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 from app.schemas.methods.energy_scp import EnergyScpOptions, EnergyStopTolerance
 from app.schemas.methods.foh_ptr import FohPtrOptions, FohStopTolerance
 from app.schemas.methods.hp_scp import HpScpOptions, HpStopTolerance
+from app.schemas.methods.lgl_sqp import GlobalGuessOptions, LglSqpOptions
 
 METHOD_OPTION_TYPES: Final[tuple[type[ScpRunOptions], ...]] = (
     EnergyScpOptions,
     FohPtrOptions,
     HpScpOptions,
     ChebScvxOptions,
+    LglSqpOptions,
 )
 """Every method's options model: the one place a method is registered."""
 
@@ -81,8 +83,10 @@ __all__ = [
     "EnergyStopTolerance",
     "FohPtrOptions",
     "FohStopTolerance",
+    "GlobalGuessOptions",
     "HpScpOptions",
     "HpStopTolerance",
+    "LglSqpOptions",
     "MethodSpec",
     "ScpRunOptions",
     "default_method_options",

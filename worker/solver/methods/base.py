@@ -22,7 +22,7 @@ from worker.solver.scp.loop import (
     StopCheck,
     run_scp,
 )
-from worker.solver.trajectory import OptimizedTrajectory
+from worker.solver.trajectory import OptimizedTrajectory, PhasedTrajectory
 
 Options = TypeVar("Options", bound=ScpRunOptions)
 Ref = TypeVar("Ref")
@@ -54,7 +54,7 @@ class MethodResult:
     """
 
     status: ScpStatus
-    trajectory: OptimizedTrajectory | None
+    trajectory: OptimizedTrajectory | PhasedTrajectory | None
     history: list[IterationRecord]
     conic_solve_s: float
     objective_terms: dict[str, float] = field(default_factory=dict)
@@ -249,6 +249,12 @@ class MethodInfo:
     warm_kernels: bool = False
     """Whether the method's loop runs the compiled kernels whose loading (a few tenths of a
     second from numba's cache) the caller should do before the clock starts."""
+    phases: bool = False
+    """Whether the method solves a document with ``phases`` (linked legs, each with its own
+    duration, end conditions and bounds); without it the registry refuses such a document."""
+    propulsion: bool = False
+    """Whether the method flies a vehicle with ``propulsion`` (thrust, mass flow, thrust lag);
+    without it the registry refuses such a document."""
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready description with the default options of the method."""
@@ -258,6 +264,8 @@ class MethodInfo:
             "paper": self.paper,
             "features": list(self.features),
             "objectives": list(self.objectives),
+            "phases": self.phases,
+            "propulsion": self.propulsion,
             "default_options": self.options_type.model_validate({}).model_dump(mode="json"),
         }
 

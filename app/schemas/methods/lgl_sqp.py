@@ -1,0 +1,98 @@
+"""Options of paper 004's evolutionary collocation: a global initial guess by a genetic algorithm
+or particle swarm, then Legendre–Gauss–Lobatto collocation of all phases solved by SQP
+(``lgl-sqp``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from app.schemas.base import FieldProblem, raise_problems
+from app.schemas.methods.common import BoundedOptions, ScpRunOptions
+
+
+class GlobalGuessOptions(BoundedOptions):
+    """The global search that makes the initial guess (paper 004 sec. 2.2-2.4): each phase's
+    angle of attack and bank at a few knots, its duration and, when it may thrust, a full-thrust
+    burn's start and length, scored by the propagated end-condition errors."""
+
+    algorithm: Literal["ga", "pso"] = Field(
+        "ga", description="Genetic algorithm (ga) or particle swarm (pso), both from pymoo."
+    )
+    seed: int = Field(1, ge=0, le=2**31 - 1, description="Random seed: same seed, same guess.")
+    population: int = Field(
+        40, ge=4, le=1000, description="Individuals (ga) or particles (pso) per generation."
+    )
+    max_evaluations: int = Field(
+        4000, ge=10, le=1_000_000, description="Most candidate trajectories propagated."
+    )
+    time_limit_s: float = Field(
+        60.0, gt=0, le=3600, description="Most wall seconds the search may take."
+    )
+    knots: int = Field(
+        3, ge=1, le=8, description="Knots of alpha and bank per phase (linear between them)."
+    )
+
+
+class LglSqpOptions(ScpRunOptions):
+    """Paper 004's method: LGL collocation in integral form on segments of every phase, linked
+    by state continuity, solved by SQP (a Clarabel QP per iteration, the convexified exact
+    Lagrangian Hessian, an l1 merit line search or paper 003's filter)."""
+
+    name: Literal["lgl-sqp"] = Field("lgl-sqp", description="Method name.")
+    nodes: int = Field(
+        81,
+        ge=3,
+        le=2001,
+        description="Points of each phase: segments x degree + 1 (default 20 segments of "
+        "degree 4).",
+    )
+    degree: int = Field(4, ge=1, le=12, description="LGL degree of every segment.")
+    phase_nodes: list[int] | None = Field(
+        None,
+        description="Points of each phase in order, overriding nodes (each minus 1 a multiple "
+        "of degree).",
+    )
+    max_iterations: int = Field(150, ge=1, le=1000, description="Most SQP iterations.")
+    time_limit_s: float = Field(300.0, gt=0, le=3600, description="Wall-clock limit, s.")
+    initial_guess: Literal["global", "constant"] = Field(
+        "global",
+        description="global: the GA/PSO search of global_guess; constant: each phase flown with "
+        "constant mid-range controls for the middle of its duration bounds.",
+    )
+    global_guess: GlobalGuessOptions = Field(
+        default_factory=GlobalGuessOptions, description="The global search's settings."
+    )
+    line_search: Literal["merit", "filter"] = Field(
+        "merit",
+        description="merit: Armijo on the l1 exact penalty of the elastic QP; filter: paper "
+        "003's non-monotone filter on (violation, objective).",
+    )
+    feasibility_tolerance: float = Field(
+        1e-8,
+        gt=0,
+        le=1e-2,
+        description="Largest scaled constraint violation of a converged answer (defects in "
+        "state scales: 1e-8 of the altitude scale is 0.3 mm).",
+    )
+    step_tolerance: float = Field(
+        1e-6, gt=0, le=1e-1, description="Largest scaled step of a converged answer."
+    )
+
+    @model_validator(mode="after")
+    def _meshes(self) -> LglSqpOptions:
+        counts = self.phase_nodes if self.phase_nodes is not None else [self.nodes]
+        problems = [
+            FieldProblem(
+                ("phase_nodes", i) if self.phase_nodes is not None else ("nodes",),
+                "mesh_shape",
+                f"{n} points do not make whole segments of degree {self.degree} "
+                f"(points - 1 must be a multiple of {self.degree})",
+                n,
+            )
+            for i, n in enumerate(counts)
+            if n < 3 or (n - 1) % self.degree
+        ]
+        raise_problems("LglSqpOptions", problems)
+        return self

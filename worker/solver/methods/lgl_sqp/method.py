@@ -1,0 +1,361 @@
+"""Paper 004's evolutionary collocation as a method: the guess (global search or constant
+controls), the SQP on the LGL collocation NLP, and the answer as a phased trajectory.
+
+The history holds one record per generation of the global search (``extra.stage``
+"global_guess": its best score) and one per SQP iteration (``extra.stage`` "sqp": step length,
+penalty, trust box, violations). A run that cannot meet its conditions ends ``failed`` with
+the conditions it misses at its last point, by how much, in SI units.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from app.schemas.methods import LglSqpOptions
+from worker.solver.conic import make_backend
+from worker.solver.global_search import SearchBudget
+from worker.solver.methods.base import MethodResult
+from worker.solver.methods.lgl_sqp.guess import (
+    Guess,
+    Parameterization,
+    constant_params,
+    global_guess,
+    guess_on_mesh,
+)
+from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
+from worker.solver.methods.lgl_sqp.sqp import SqpIteration, SqpSettings, solve_sqp
+from worker.solver.phased_problem import PhasedProblem
+from worker.solver.scp.history import IterationRecord
+from worker.solver.scp.loop import IterationSink, StopCheck
+from worker.solver.trajectory import TIME_STATE_NAMES, PhasedTrajectory
+from worker.solver.transcription.lgl import LglMesh
+
+Array = np.ndarray
+UNMET_LIMIT = 6
+"""How many unmet conditions a failure message names."""
+SI_TOLERANCE = {
+    "altitude_m": 1.0,
+    "longitude_deg": 1e-4,
+    "latitude_deg": 1e-4,
+    "velocity_m_s": 0.1,
+    "flight_path_angle_deg": 1e-4,
+    "heading_deg": 1e-4,
+}
+"""Misses below these (m, deg, m/s) are not named as unmet by a failure message."""
+
+
+@dataclass
+class LglControls:
+    """The controls as the method represents them: the degree-n interpolant of each segment's
+    point values, clipped to the phase's bounds."""
+
+    meshes: list[LglMesh]
+    values: list[Array]
+    starts: list[float]
+    durations: list[float]
+    lower: list[Array]
+    upper: list[Array]
+
+    def at(self, phase: int, t: Array) -> Array:
+        s = (np.asarray(t, dtype=float) - self.starts[phase]) / self.durations[phase]
+        u = self.meshes[phase].at(self.values[phase], np.clip(s, 0.0, 1.0))
+        return np.clip(u, self.lower[phase], self.upper[phase])
+
+    def breaks(self, phase: int) -> Array:
+        return self.starts[phase] + self.durations[phase] * self.meshes[phase].breaks
+
+
+def _meshes(problem: PhasedProblem, options: LglSqpOptions) -> list[LglMesh]:
+    counts = options.phase_nodes or [options.nodes] * len(problem.phases)
+    if len(counts) != len(problem.phases):
+        raise ValueError(
+            f"method.phase_nodes gives {len(counts)} phases, the problem has {len(problem.phases)}"
+        )
+    return [LglMesh.uniform((n - 1) // options.degree, options.degree) for n in counts]
+
+
+def trajectory_of(nlp: PhasedNlp, z: Array) -> PhasedTrajectory:
+    """The phased trajectory of the NLP point ``z``."""
+    ts, xs, us, phase, bounds = [], [], [], [], []
+    starts, durations, values, lows, highs = [], [], [], [], []
+    t0 = 0.0
+    for p, slot in enumerate(nlp.slots):
+        tau = nlp.duration(z, p)
+        ts.append(t0 + tau * slot.mesh.s)
+        xs.append(nlp.states(z, p))
+        u = nlp.controls(z, p)
+        us.append(u)
+        phase.append(np.full(slot.mesh.points, p))
+        bounds.append((t0, t0 + tau))
+        starts.append(t0)
+        durations.append(tau)
+        values.append(u.copy())
+        lows.append(nlp.lower[slot.u0 : slot.u0 + nlp.nu])
+        highs.append(nlp.upper[slot.u0 : slot.u0 + nlp.nu])
+        t0 += tau
+    controls = LglControls(nlp.meshes, values, starts, durations, lows, highs)
+    return PhasedTrajectory(
+        t=np.concatenate(ts),
+        x=np.concatenate(xs),
+        u=np.concatenate(us),
+        phase=np.concatenate(phase),
+        bounds=bounds,
+        controls=controls,
+    )
+
+
+def _to_si(nlp: PhasedNlp, i: int, value: float) -> float:
+    sc = nlp.problem.base.scales
+    if i == 0:
+        return (value - 1.0) * sc.radius_m
+    if i == 3:
+        return value * sc.speed_m_s
+    return math.degrees(value)
+
+
+def unmet_conditions(nlp: PhasedNlp, z: Array) -> list[str]:
+    """The phase end conditions and path limits the point ``z`` misses, worst first, in SI."""
+    found: list[tuple[float, str]] = []
+    for p, ph in enumerate(nlp.problem.phases):
+        end = nlp.states(z, p)[-1]
+        for i, name in enumerate(TIME_STATE_NAMES):
+            spec = ph.end_si[name]
+            value = _to_si(nlp, i, float(end[i]))
+            if spec.kind == "fixed":
+                assert spec.value is not None
+                miss, what = value - spec.value, f"fixed at {spec.value:g}"
+            elif spec.kind == "range":
+                assert spec.lo is not None and spec.hi is not None
+                if value > spec.hi:
+                    miss, what = value - spec.hi, f"above its upper bound {spec.hi:g}"
+                elif value < spec.lo:
+                    miss, what = spec.lo - value, f"below its lower bound {spec.lo:g}"
+                else:
+                    continue
+            else:
+                continue
+            if abs(miss) > SI_TOLERANCE[name]:
+                found.append(
+                    (
+                        abs(miss) / SI_TOLERANCE[name],
+                        f"phase {ph.name!r} ends with {name} = {value:.6g}, {what} "
+                        f"(off by {abs(miss):.4g})",
+                    )
+                )
+    ev = nlp.evaluate(z)
+    kinds = nlp.ineq_info
+    for k, kind in enumerate(kinds.kind):
+        if kind == "path" and ev.ineq[k] > 1e-6:
+            p, point, name = kinds.phase[k], kinds.point[k], kinds.name[k]
+            found.append(
+                (
+                    ev.ineq[k] * 1e4,
+                    f"phase {nlp.problem.phases[p].name!r}: {name} at {1 + ev.ineq[k]:.4f} of "
+                    f"its limit at point {point}",
+                )
+            )
+    dyn = float(np.max(np.abs(ev.eq[[k != "end" for k in nlp.eq_info.kind]]), initial=0.0))
+    if dyn > 1e-6:
+        found.append((0.0, f"the dynamics are not met (largest scaled defect {dyn:.3g})"))
+    found.sort(key=lambda item: -item[0])
+    return [text for _, text in found]
+
+
+def _sqp_record(
+    nlp: PhasedNlp, it: SqpIteration, prev: Array | None, offset: int
+) -> IterationRecord:
+    terms = nlp.objective_terms(it.z)
+    change: dict[str, float] = {}
+    if prev is not None:
+        sc = nlp.problem.base.scales
+        unit = (sc.radius_m, math.degrees(1.0), math.degrees(1.0), sc.speed_m_s,
+                math.degrees(1.0), math.degrees(1.0))  # fmt: skip
+        for i, name in enumerate(TIME_STATE_NAMES):
+            delta = max(
+                float(np.max(np.abs(nlp.states(it.z, p)[:, i] - nlp.states(prev, p)[:, i])))
+                for p in range(len(nlp.slots))
+            )
+            change[name] = delta * unit[i]
+    single = next(iter(terms.values())) if len(terms) == 1 else it.objective
+    return IterationRecord(
+        iteration=it.iteration + offset,
+        cost=float(single),
+        cost_terms={f"objective:{k}": v for k, v in terms.items()},
+        objective_value=float(single),
+        max_state_change=change,
+        trust_region_slack=it.trust,
+        virtual_control_norm=it.elastic,
+        linearization_error=it.max_violation,
+        nodes_post_corrected=0,
+        relaxation_gap=0.0,
+        conic_status=it.qp_status,
+        conic_solver="clarabel",
+        conic_solve_s=it.qp_solve_s,
+        conic_setup_s=it.qp_setup_s,
+        iteration_wall_s=it.wall_s,
+        subproblem_cost=it.merit,
+        extra={
+            "stage": "sqp",
+            "step_length": it.step_length,
+            "step": it.step,
+            "penalty": it.penalty,
+            "trust_box": it.trust,
+            "accepted": it.accepted,
+            "violation_dynamics": it.violation_dynamics,
+            "violation_conditions": it.violation_conditions,
+            "max_violation": it.max_violation,
+            "line_search": it.line_search,
+            "qp_iterations": it.qp_iterations,
+        },
+    )
+
+
+def _guess_record(generation: int, best: float, algorithm: str, wall: float) -> IterationRecord:
+    return IterationRecord(
+        iteration=generation,
+        cost=float(best),
+        cost_terms={},
+        objective_value=None,
+        max_state_change={},
+        trust_region_slack=0.0,
+        virtual_control_norm=0.0,
+        linearization_error=0.0,
+        nodes_post_corrected=0,
+        relaxation_gap=0.0,
+        conic_status="not_used",
+        conic_solver="none",
+        conic_solve_s=0.0,
+        conic_setup_s=0.0,
+        iteration_wall_s=wall,
+        extra={
+            "stage": "global_guess",
+            "generation": generation,
+            "best_score": float(best),
+            "algorithm": algorithm,
+        },
+    )
+
+
+def run(
+    problem: PhasedProblem,
+    options: LglSqpOptions,
+    on_iteration: IterationSink | None = None,
+    should_stop: StopCheck | None = None,
+) -> MethodResult:
+    """Guess, then SQP; the answer and its history."""
+    start = time.perf_counter()
+    nlp = PhasedNlp(problem, _meshes(problem, options))
+    par = Parameterization(problem, options.global_guess.knots)
+    history: list[IterationRecord] = []
+
+    def emit(record: IterationRecord) -> None:
+        history.append(record)
+        if on_iteration is not None:
+            on_iteration(record)
+
+    extra: dict[str, Any] = {}
+    guess: Guess
+    if options.initial_guess == "global":
+        gg = options.global_guess
+        last = [time.perf_counter()]
+
+        def progress(generation: int, best: float) -> None:
+            now = time.perf_counter()
+            emit(_guess_record(generation, best, gg.algorithm, now - last[0]))
+            last[0] = now
+            if should_stop is not None and should_stop():
+                raise _StoppedError
+
+        try:
+            guess = global_guess(
+                par,
+                nlp,
+                algorithm=gg.algorithm,
+                seed=gg.seed,
+                population=gg.population,
+                budget=SearchBudget(gg.max_evaluations, gg.time_limit_s),
+                progress=progress,
+            )
+        except _StoppedError:
+            return MethodResult(
+                status="cancelled",
+                trajectory=None,
+                history=history,
+                conic_solve_s=0.0,
+                failure_code="cancelled",
+                failure_message="cancelled during the global search",
+            )
+        assert guess.search is not None
+        s = guess.search
+        extra["global_guess"] = {
+            "algorithm": s.algorithm,
+            "seed": s.seed,
+            "population": s.population,
+            "generations": s.generations,
+            "evaluations": s.evaluations,
+            "best_score": s.score,
+            "wall_s": s.wall_s,
+            "stopped_by": s.stopped_by,
+        }
+    else:
+        guess = guess_on_mesh(par, nlp, constant_params(par))
+        extra["constant_guess"] = {"score": guess.score}
+    offset = len(history)
+    prev: list[Array | None] = [None]
+
+    def on_sqp(it: SqpIteration, _ev: Any) -> None:
+        emit(_sqp_record(nlp, it, prev[0], offset))
+        prev[0] = it.z
+
+    settings = SqpSettings(
+        max_iterations=options.max_iterations,
+        time_limit_s=options.time_limit_s,
+        feasibility_tolerance=options.feasibility_tolerance,
+        step_tolerance=options.step_tolerance,
+        line_search=options.line_search,
+        conic_time_limit_s=options.conic_time_limit_s,
+    )
+    backend = make_backend(options.conic_backend, fallback=options.fallback_solver)
+    z0 = nlp.pack(guess.states, guess.controls, guess.durations)
+    out = solve_sqp(
+        nlp, z0, settings, backend, on_iteration=on_sqp, should_stop=should_stop, clock_start=start
+    )
+    extra["sqp"] = {
+        "status": out.status,
+        "iterations": len(out.iterations),
+        "qp_solve_s": out.qp_solve_s,
+    }
+    status: Any = out.status
+    code = message = None
+    if out.status == "infeasible":
+        status, code = "failed", "infeasible"
+    elif out.status == "failed":
+        code = "numerical_error"
+    elif out.status == "max_iterations":
+        code = "max_iterations"
+    elif out.status in ("timed_out", "cancelled"):
+        code = out.status
+    if status != "converged":
+        unmet = unmet_conditions(nlp, out.z)
+        lead = out.message or f"not converged after {len(out.iterations)} SQP iterations"
+        tail = "; unmet: " + "; ".join(unmet[:UNMET_LIMIT]) if unmet else ""
+        message = lead + tail
+    return MethodResult(
+        status=status,
+        trajectory=trajectory_of(nlp, out.z),
+        history=history,
+        conic_solve_s=out.qp_solve_s,
+        objective_terms=nlp.objective_terms(out.z),
+        failure_code=code,
+        failure_message=message,
+        extra=extra,
+    )
+
+
+class _StoppedError(Exception):
+    """The caller asked to stop during the global search."""
