@@ -208,6 +208,9 @@ class MethodView(BaseModel):
     title: str | None = None
     paper: str | None = None
     features: list[str] = Field(default_factory=list)
+    objectives: list[str] = Field(default_factory=list, description="Objective terms it takes.")
+    phases: bool = Field(False, description="Whether it solves documents with phases.")
+    propulsion: bool = Field(False, description="Whether it flies a vehicle with propulsion.")
     default_options: dict[str, Any] = Field(default_factory=dict)
 
 

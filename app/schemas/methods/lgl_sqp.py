@@ -54,8 +54,13 @@ class LglSqpOptions(ScpRunOptions):
         description="Points of each phase in order, overriding nodes (each minus 1 a multiple "
         "of degree).",
     )
-    max_iterations: int = Field(150, ge=1, le=1000, description="Most SQP iterations.")
-    time_limit_s: float = Field(300.0, gt=0, le=3600, description="Wall-clock limit, s.")
+    max_iterations: int = Field(
+        600,
+        ge=1,
+        le=2000,
+        description="Most SQP iterations (paper 004's case from a GA/PSO guess: 250-350).",
+    )
+    time_limit_s: float = Field(900.0, gt=0, le=3600, description="Wall-clock limit, s.")
     initial_guess: Literal["global", "constant"] = Field(
         "global",
         description="global: the GA/PSO search of global_guess; constant: each phase flown with "
