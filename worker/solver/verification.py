@@ -157,11 +157,11 @@ class Propagation:
         return int(sum(seg.t.size - 1 for seg in self.segments))
 
     def sol(self, t: Array) -> Array:
-        """States (6, len(t)) at times ``t`` within the flight, from the dense outputs."""
+        """States (n_states, len(t)) at times ``t`` within the flight, from the dense outputs."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         ends = np.array([seg.t[-1] for seg in self.segments])
         which = np.minimum(np.searchsorted(ends, t, side="left"), len(self.segments) - 1)
-        out = np.empty((6, t.size))
+        out = np.empty((self.segments[0].y.shape[0], t.size))
         for k in np.unique(which):
             mask = which == k
             out[:, mask] = self.segments[k].sol(t[mask])

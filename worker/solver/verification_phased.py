@@ -32,6 +32,7 @@ from worker.solver.units import COLUMN_UNITS
 from worker.solver.verification import (
     ATOL,
     RTOL,
+    Propagation,
     StopCheck,
     VerificationTolerances,
     poller,
@@ -66,20 +67,14 @@ class PhaseFlight:
 
     @property
     def steps(self) -> int:
-        return int(sum(seg.t.size - 1 for seg in self.segments))
+        return Propagation(self.segments, 0, 1).steps if self.segments else 0
 
     def sol(self, t: Array) -> Array:
         """States (len(t), n_states) at times ``t`` within the phase, from the dense outputs."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if not self.segments:  # a phase of no duration
             return np.tile(self.x_start, (t.size, 1))
-        ends = np.array([seg.t[-1] for seg in self.segments])
-        which = np.minimum(np.searchsorted(ends, t, side="left"), len(self.segments) - 1)
-        out = np.empty((t.size, self.segments[0].y.shape[0]))
-        for k in np.unique(which):
-            mask = which == k
-            out[mask] = self.segments[k].sol(t[mask]).T
-        return out
+        return Propagation(self.segments, 0, 1).sol(t).T
 
 
 def propagate_phased(

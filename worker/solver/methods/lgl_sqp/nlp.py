@@ -99,7 +99,6 @@ class Evaluation:
     jac_eq: sp.csr_matrix
     jac_ineq: sp.csr_matrix
     points: list[tuple[Array, Array]]  # per phase (states, controls) at its points
-    rate_jacobians: list[Array]  # per phase (points, n_states, nv): d rates / d scaled (x, u)
 
 
 class PhasedNlp:
@@ -346,7 +345,6 @@ class PhasedNlp:
         in_v: list[Array] = []
         n_eq = n_in = 0
         points = []
-        jacobians: list[Array] = []
         sx = self.state_scale
         for p, s in enumerate(self.slots):
             mesh = s.mesh
@@ -355,7 +353,6 @@ class PhasedNlp:
             tau = self.duration(z, p)
             points.append((x, u))
             f, g, jf, jg = self._point_jacobians(p, x, u)
-            jacobians.append(jf)
             A = integration_matrix(n)[1:]  # (n, n+1)
             half = 0.5 * np.diff(mesh.breaks)  # (segs,)
             idx = np.arange(segs)[:, None] * n + np.arange(n + 1)[None, :]  # (segs, n+1)
@@ -454,7 +451,6 @@ class PhasedNlp:
             jac_eq=jac_eq,
             jac_ineq=jac_in,
             points=points,
-            rate_jacobians=jacobians,
         )
 
     def violation(self, ev: Evaluation) -> tuple[float, float]:

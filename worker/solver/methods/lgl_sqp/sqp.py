@@ -238,10 +238,7 @@ def solve_sqp(
             y_eq, y_in = lam_eq, lam_in
         step = float(np.max(np.abs(d))) if d.size else 0.0
         viol_dyn, viol_cond = nlp.violation(ev)
-        max_viol = max(
-            float(np.max(np.abs(ev.eq))) if ev.eq.size else 0.0,
-            float(np.max(ev.ineq)) if ev.ineq.size else 0.0,
-        )
+        max_viol = now_max
         phi0 = _merit(nlp, ev, rho, weights, share)
         objectives.append(ev.objective)
         settled = len(objectives) > SETTLE_ITERATIONS and max(
