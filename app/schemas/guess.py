@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any, Self
+from typing import Any, Literal, Self
 
 from pydantic import Field, model_validator
 
 from app.schemas.base import FieldProblem, StrictModel, raise_problems
+from app.schemas.methods.common import BoundedOptions
 
 MAX_GUESS_POINTS = 20_000
 """Points a guess trajectory may have (a 1 000-node result's propagated flight has ~20 000)."""
@@ -80,9 +81,43 @@ class GuessTrajectory(StrictModel):
         return self
 
 
+class GlobalGuessOptions(BoundedOptions):
+    """A global search for a start (paper 004 sec. 2.2-2.4): each phase's angle of attack and
+    bank at a few knots, its duration and, when it may thrust, a full-thrust burn's start and
+    length, scored by the propagated end-condition errors."""
+
+    algorithm: Literal["ga", "pso"] = Field(
+        "ga", description="Genetic algorithm (ga) or particle swarm (pso), both from pymoo."
+    )
+    seed: int = Field(1, ge=0, le=2**31 - 1, description="Random seed: same seed, same guess.")
+    population: int = Field(
+        40, ge=4, le=1000, description="Individuals (ga) or particles (pso) per generation."
+    )
+    max_evaluations: int = Field(
+        4000, ge=10, le=1_000_000, description="Most candidate trajectories propagated."
+    )
+    time_limit_s: float = Field(
+        60.0, gt=0, le=3600, description="Most wall seconds the search may take."
+    )
+    knots: int = Field(
+        3, ge=1, le=8, description="Knots of alpha and bank per phase (linear between them)."
+    )
+
+
 class InitialGuess(StrictModel):
     """Where a method starts: ``from_job`` (one of the caller's finished jobs with a
-    trajectory; the service copies its trajectory here) or an explicit ``trajectory``."""
+    trajectory; the service copies its trajectory here), an explicit ``trajectory``, or
+    ``kind: "global"``: a GA/PSO search of the controls (``search``) whose best flight is the
+    start, for a problem far from the method's own guesses."""
+
+    kind: Literal["global"] | None = Field(
+        None,
+        description="global: start from the best flight of a GA/PSO search of the controls "
+        "(scored by its terminal misses and path-limit excess); omitted: from_job or trajectory.",
+    )
+    search: GlobalGuessOptions | None = Field(
+        None, description='The global search (kind "global"; its defaults when omitted).'
+    )
 
     from_job: str | None = Field(
         None,
@@ -95,11 +130,24 @@ class InitialGuess(StrictModel):
 
     @model_validator(mode="after")
     def _something(self) -> Self:
-        if self.from_job is None and self.trajectory is None:
-            raise_problems(
-                "initial_guess",
-                [FieldProblem((), "missing", "give from_job or trajectory")],
+        problems: list[FieldProblem] = []
+        if self.kind == "global":
+            for name in ("from_job", "trajectory"):
+                if getattr(self, name) is not None:
+                    problems.append(
+                        FieldProblem(
+                            (name,), "conflicting_start", 'not with kind "global" (one start)'
+                        )
+                    )
+        elif self.search is not None:
+            problems.append(
+                FieldProblem(("search",), "search_without_global", 'needs kind "global"')
             )
+        elif self.from_job is None and self.trajectory is None:
+            problems.append(
+                FieldProblem((), "missing", 'give from_job, trajectory or kind "global"')
+            )
+        raise_problems("initial_guess", problems)
         return self
 
 

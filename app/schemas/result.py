@@ -489,8 +489,9 @@ class Provenance(_Record):
     )
     initial_guess: str | None = Field(
         None,
-        description="Only for a warm start: the given trajectory the method started from "
-        "(the problem's initial_guess) instead of its own guess.",
+        description="Only for a given start: the trajectory the method started from (the "
+        "problem's initial_guess) instead of its own guess, or how the global search that "
+        "made it went (kind global).",
     )
 
 

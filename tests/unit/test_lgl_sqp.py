@@ -16,9 +16,10 @@ from app.schemas import ProblemDocument
 from worker.solver.api import solve_problem
 from worker.solver.conic import make_backend
 from worker.solver.global_search import SearchBudget
-from worker.solver.methods.lgl_sqp.guess import Parameterization, global_guess
+from worker.solver.methods.lgl_sqp.guess import global_guess
 from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
 from worker.solver.methods.lgl_sqp.sqp import SqpSettings, solve_sqp
+from worker.solver.phase_search import Parameterization
 from worker.solver.phased_problem import PhasedProblem, build_phased_problem
 from worker.solver.transcription.lgl import LglMesh
 

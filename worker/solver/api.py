@@ -16,6 +16,7 @@ from app.schemas import ProblemDocument
 from app.schemas.result import json_ready
 from worker.solver.diagnosis import BUDGET_CODES, advice, stall_note
 from worker.solver.finite import non_finite_entries
+from worker.solver.global_start import GlobalStartStoppedError, with_global_start
 from worker.solver.methods import METHODS, check_support
 from worker.solver.models.bank_state_compiled import compiled_parameters
 from worker.solver.objective_weights import weighted_sum
@@ -247,6 +248,24 @@ def solve_problem(
         build_phased_problem(problem) if phased else build_problem(problem)
     )
     base = model.base if isinstance(model, PhasedProblem) else model
+    start_note: str | None = None
+    guess = problem.initial_guess
+    if isinstance(model, EntryProblem) and guess is not None and guess.kind == "global":
+        try:
+            model, start_note = with_global_start(problem, model, should_stop=should_stop)
+        except GlobalStartStoppedError:
+            return validated(
+                {
+                    "status": "cancelled",
+                    "method": method,
+                    "failure": {
+                        "code": "cancelled",
+                        "message": "cancelled during the global search for a start",
+                    },
+                    "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
+                }
+            )
+        base = model
     streamed: list[IterationRecord] = []
 
     def forward(record: IterationRecord) -> None:
@@ -289,6 +308,8 @@ def solve_problem(
     }
     if phased:
         document["provenance"].update(dynamics="numpy", dynamics_note=PHASED_DYNAMICS_NOTE)
+    if start_note is not None:
+        document["provenance"]["initial_guess"] = start_note
     if outcome.starts is not None:
         document["starts"] = outcome.starts
     verification_s = 0.0

@@ -9,30 +9,8 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from app.schemas.base import FieldProblem, raise_problems
-from app.schemas.methods.common import BoundedOptions, ScpRunOptions
-
-
-class GlobalGuessOptions(BoundedOptions):
-    """The global search that makes the initial guess (paper 004 sec. 2.2-2.4): each phase's
-    angle of attack and bank at a few knots, its duration and, when it may thrust, a full-thrust
-    burn's start and length, scored by the propagated end-condition errors."""
-
-    algorithm: Literal["ga", "pso"] = Field(
-        "ga", description="Genetic algorithm (ga) or particle swarm (pso), both from pymoo."
-    )
-    seed: int = Field(1, ge=0, le=2**31 - 1, description="Random seed: same seed, same guess.")
-    population: int = Field(
-        40, ge=4, le=1000, description="Individuals (ga) or particles (pso) per generation."
-    )
-    max_evaluations: int = Field(
-        4000, ge=10, le=1_000_000, description="Most candidate trajectories propagated."
-    )
-    time_limit_s: float = Field(
-        60.0, gt=0, le=3600, description="Most wall seconds the search may take."
-    )
-    knots: int = Field(
-        3, ge=1, le=8, description="Knots of alpha and bank per phase (linear between them)."
-    )
+from app.schemas.guess import GlobalGuessOptions
+from app.schemas.methods.common import ScpRunOptions
 
 
 class LglSqpOptions(ScpRunOptions):
@@ -58,7 +36,7 @@ class LglSqpOptions(ScpRunOptions):
         600,
         ge=1,
         le=2000,
-        description="Most SQP iterations (paper 004's case from a GA/PSO guess: 250-350).",
+        description="Most SQP iterations (paper 004's case from a GA/PSO guess: 100-250).",
     )
     time_limit_s: float = Field(900.0, gt=0, le=3600, description="Wall-clock limit, s.")
     initial_guess: Literal["global", "constant"] = Field(
@@ -79,7 +57,7 @@ class LglSqpOptions(ScpRunOptions):
         gt=0,
         le=1e-2,
         description="Largest scaled constraint violation of a converged answer (defects in "
-        "state scales: 1e-8 of the altitude scale is 0.3 mm).",
+        "state scales: 1e-8 of the altitude scale is 1.3 mm).",
     )
     step_tolerance: float = Field(
         1e-6, gt=0, le=1e-1, description="Largest scaled step of a converged answer."

@@ -84,12 +84,36 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     if refused:  # the method's own checks would misread what it cannot fly
         return refused
     out = list(info.check(doc))
-    if doc.initial_guess is not None and doc.initial_guess.trajectory is None:
+    guess = doc.initial_guess
+    if guess is not None and guess.kind == "global":
+        out += global_start_issues(doc)
+    elif guess is not None and guess.trajectory is None:
         out.append(
             issue(
                 "initial_guess.from_job",
                 "only the service resolves from_job (it copies that job's trajectory); "
                 "here give initial_guess.trajectory",
+            )
+        )
+    return out
+
+
+def global_start_issues(doc: ProblemDocument) -> list[FieldIssue]:
+    """What a global start (``phase_search``: the spherical point-mass model, an angle of attack
+    searched or scheduled) cannot fly yet."""
+    out: list[FieldIssue] = []
+    if doc.vehicle.aerodynamics.model == "parabolic_polar":
+        out.append(
+            issue(
+                "initial_guess.kind",
+                "a global start searches an angle of attack or flies its schedule; not yet a "
+                "parabolic polar's lift coefficient",
+            )
+        )
+    if doc.planet.model == "flat":
+        out.append(
+            issue(
+                "initial_guess.kind", "a global start flies the spherical model, not the flat one"
             )
         )
     return out

@@ -20,15 +20,10 @@ from app.schemas.methods import LglSqpOptions
 from worker.solver.conic import make_backend
 from worker.solver.global_search import SearchBudget
 from worker.solver.methods.base import MethodResult
-from worker.solver.methods.lgl_sqp.guess import (
-    Guess,
-    Parameterization,
-    constant_params,
-    global_guess,
-    guess_on_mesh,
-)
+from worker.solver.methods.lgl_sqp.guess import Guess, global_guess, guess_on_mesh
 from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
 from worker.solver.methods.lgl_sqp.sqp import SqpIteration, SqpSettings, solve_sqp
+from worker.solver.phase_search import Parameterization, constant_params
 from worker.solver.phased_problem import PhasedProblem
 from worker.solver.scp.history import IterationRecord
 from worker.solver.scp.loop import IterationSink, StopCheck

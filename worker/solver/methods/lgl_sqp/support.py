@@ -56,7 +56,11 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
         out.append(issue("energy", f"{NAME} works in time; leave energy out"))
     if doc.initial_guess is not None:
         out.append(
-            issue("initial_guess", f"{NAME} makes its own guess (method.initial_guess: global)")
+            issue(
+                "initial_guess",
+                f"{NAME} makes its own guess: method.initial_guess (global or constant) and "
+                "method.global_guess (algorithm, seed, budget)",
+            )
         )
     ends = [("terminal", doc.terminal)] + [
         (f"phases[{i}].end", phase.end) for i, phase in enumerate(doc.phases)
