@@ -32,6 +32,13 @@ class LglSqpOptions(ScpRunOptions):
         description="Points of each phase in order, overriding nodes (each minus 1 a multiple "
         "of degree).",
     )
+    refine_burns: bool = Field(
+        True,
+        description="Once converged, solve each phase that may thrust again from that answer "
+        "on twice its segments, a segment holding a burn's start or end on eight (not with "
+        "phase_nodes): paper 004's exit altitude after propagation 276 m off on 20 segments, "
+        "25 m after the refinement.",
+    )
     max_iterations: int = Field(
         600,
         ge=1,

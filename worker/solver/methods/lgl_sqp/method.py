@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +32,14 @@ from worker.solver.transcription.lgl import LglMesh
 
 Array = np.ndarray
 UNMET_LIMIT = 6
+SWITCH_SHARE = 0.01
+"""A segment whose commanded thrust changes by more than this share of the phase's largest
+thrust holds a burn's start or end."""
+SWITCH_SPLIT = 8
+"""Parts a segment holding a switch is cut into by the refinement (the others: 2)."""
+REFINEMENT_FALLBACK = ("max_iterations", "failed", "infeasible")
+"""Ends of the refinement stage after which the first mesh's converged answer is reported
+(a cancelled or timed-out refinement ends the run as such)."""
 """How many unmet conditions a failure message names."""
 SI_TOLERANCE = {
     "altitude_m": 1.0,
@@ -63,6 +71,44 @@ class LglControls:
 
     def breaks(self, phase: int) -> Array:
         return self.starts[phase] + self.durations[phase] * self.meshes[phase].breaks
+
+
+def _burn_meshes(
+    problem: PhasedProblem, options: LglSqpOptions, nlp: PhasedNlp, z: Array
+) -> list[LglMesh] | None:
+    """The meshes of the refinement stage from the answer ``z`` on ``nlp``: each phase that may
+    thrust on twice its segments, a segment over which the commanded thrust changes (a burn's
+    start or end) on SWITCH_SPLIT; None when no phase may thrust, the user gave phase_nodes, or
+    refinement is off."""
+    if not options.refine_burns or options.phase_nodes is not None:
+        return None
+    if not any(ph.thrust_max > 0 for ph in problem.phases):
+        return None
+    meshes = []
+    for p, (mesh, ph) in enumerate(zip(nlp.meshes, problem.phases, strict=True)):
+        if ph.thrust_max <= 0:
+            meshes.append(mesh)
+            continue
+        command = nlp.controls(z, p)[:, 2]
+        breaks: list[float] = []
+        for k in range(mesh.segments):
+            values = command[mesh.segment_slice(k)]
+            switches = values.max() - values.min() > SWITCH_SHARE * ph.thrust_max
+            parts = SWITCH_SPLIT if switches else 2
+            breaks.extend(np.linspace(mesh.breaks[k], mesh.breaks[k + 1], parts + 1)[:-1])
+        meshes.append(LglMesh(np.array([*breaks, 1.0]), mesh.degree))
+    return meshes
+
+
+def _on_mesh(coarse: PhasedNlp, fine: PhasedNlp, z: Array) -> Array:
+    """The point ``z`` of ``coarse`` carried onto ``fine``'s mesh by each segment's LGL
+    interpolant (durations kept)."""
+    xs, us, taus = [], [], []
+    for p, (a, b) in enumerate(zip(coarse.slots, fine.slots, strict=True)):
+        xs.append(a.mesh.at(coarse.states(z, p), b.mesh.s))
+        us.append(a.mesh.at(coarse.controls(z, p), b.mesh.s))
+        taus.append(coarse.duration(z, p))
+    return fine.pack(xs, us, taus)
 
 
 def _meshes(problem: PhasedProblem, options: LglSqpOptions) -> list[LglMesh]:
@@ -300,12 +346,13 @@ def run(
     else:
         guess = guess_on_mesh(par, nlp, constant_params(par))
         extra["constant_guess"] = {"score": guess.score}
-    offset = len(history)
-    prev: list[Array | None] = [None]
+    stage = _Stage(nlp, len(history), 1)
 
     def on_sqp(it: SqpIteration, _ev: Any) -> None:
-        emit(_sqp_record(nlp, it, prev[0], offset))
-        prev[0] = it.z
+        record = _sqp_record(stage.nlp, it, stage.previous, stage.offset)
+        record.extra["mesh"] = stage.mesh
+        emit(record)
+        stage.previous = it.z
 
     settings = SqpSettings(
         max_iterations=options.max_iterations,
@@ -325,6 +372,29 @@ def run(
         "iterations": len(out.iterations),
         "qp_solve_s": out.qp_solve_s,
     }
+    fine = _burn_meshes(problem, options, nlp, out.z) if out.status == "converged" else None
+    if fine is not None:
+        # the burn's switches resolved: the thrusting phases again on twice their segments,
+        # from the first answer, within what is left of the budget
+        refined = PhasedNlp(problem, fine)
+        stage = _Stage(refined, len(history), 2)
+        budget = max(options.max_iterations - len(out.iterations), 1)
+        second = solve_sqp(
+            refined, _on_mesh(nlp, refined, out.z), replace(settings, max_iterations=budget),
+            backend, on_iteration=on_sqp, should_stop=should_stop, clock_start=start,
+        )  # fmt: skip
+        second.qp_solve_s += out.qp_solve_s
+        kept = second.status not in REFINEMENT_FALLBACK
+        extra["sqp"]["refined"] = {
+            "status": second.status,
+            "iterations": len(second.iterations),
+            "nodes": [m.points for m in fine],
+            "answer": "refined mesh" if kept else "first mesh (the refinement did not converge)",
+        }
+        if kept:
+            out, nlp = second, refined
+        else:
+            out.qp_solve_s = second.qp_solve_s
     status: Any = out.status
     code = message = None
     if out.status == "infeasible":
@@ -350,6 +420,17 @@ def run(
         failure_message=message,
         extra=extra,
     )
+
+
+@dataclass
+class _Stage:
+    """The mesh the SQP iterates on (1: the user's, 2: the burns refined), where its records
+    start in the history, and its last point (for the records' state changes)."""
+
+    nlp: PhasedNlp
+    offset: int
+    mesh: int
+    previous: Array | None = None
 
 
 class _StoppedError(Exception):
