@@ -282,28 +282,38 @@ def propagate(
         kinks = getattr(traj.attitude, "breaks", None)  # where a smooth path's pieces meet
         restarts = traj.t[1:-1] if kinks is None else kinks
         stops = [float(t) for t in restarts if 0.0 < t < t_end] + [t_end]
+    segments, status = propagate_in_pieces(
+        rhs, 0.0, np.asarray(problem.y0, dtype=float), stops, rtol, atol, events
+    )
+    return Propagation(segments=segments, status=status, events=len(events))
+
+
+def propagate_in_pieces(
+    rhs: Any,
+    t0: float,
+    y0: Array,
+    stops: list[float],
+    rtol: float,
+    atol: float,
+    events: list[Any],
+) -> tuple[list[Any], int]:
+    """DOP853 from (t0, y0), restarted at each of ``stops`` (where the controls' pieces meet:
+    no step straddles a kink), until the last stop or an event: the dense segments and
+    solve_ivp's status of the last one (0: reached the end)."""
     segments: list[Any] = []
-    t_start, y = 0.0, np.asarray(problem.y0, dtype=float)
-    status = 0
+    t_start, y = t0, y0
     for t_stop in stops:
         if t_stop <= t_start:
             continue
         segment = solve_ivp(
-            rhs,
-            (t_start, t_stop),
-            y,
-            method="DOP853",
-            rtol=rtol,
-            atol=atol,
-            events=events,
+            rhs, (t_start, t_stop), y, method="DOP853", rtol=rtol, atol=atol, events=events,
             dense_output=True,
-        )
+        )  # fmt: skip
         segments.append(segment)
         t_start, y = float(segment.t[-1]), segment.y[:, -1]
         if segment.status != 0:  # an event ended the flight (or the integrator failed)
-            status = segment.status
-            break
-    return Propagation(segments=segments, status=status, events=len(events))
+            return segments, int(segment.status)
+    return segments, 0
 
 
 def verify(

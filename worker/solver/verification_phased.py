@@ -20,7 +20,6 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.models.powered import PoweredPathValues, powered_path_values
@@ -36,6 +35,7 @@ from worker.solver.verification import (
     StopCheck,
     VerificationTolerances,
     poller,
+    propagate_in_pieces,
     sample_rows,
     terminal_error,
     to_si,
@@ -112,26 +112,11 @@ def propagate_phased(
 
         breaks = np.asarray(controls.breaks(p), dtype=float)
         stops = [float(b) for b in np.unique(breaks) if start < b < end] + [end]
-        flight = PhaseFlight(index=p, start=start, x_start=x, segments=[], reached_end=True)
-        t_start = start
-        for t_stop in stops:
-            if t_stop <= t_start:
-                continue
-            segment = solve_ivp(
-                rhs,
-                (t_start, t_stop),
-                x,
-                method="DOP853",
-                rtol=rtol,
-                atol=atol,
-                events=[ground],
-                dense_output=True,
-            )
-            flight.segments.append(segment)
-            t_start, x = float(segment.t[-1]), segment.y[:, -1]
-            if segment.status != 0:  # the ground (or the integrator failed)
-                flight.reached_end = False
-                break
+        segments, status = propagate_in_pieces(rhs, start, x, stops, rtol, atol, [ground])
+        flight = PhaseFlight(
+            index=p, start=start, x_start=x, segments=segments, reached_end=status == 0
+        )
+        x = segments[-1].y[:, -1] if segments else x
         flights.append(flight)
         if not flight.reached_end:
             break

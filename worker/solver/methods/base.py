@@ -287,14 +287,7 @@ def scheduled_alpha_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
                 "give a velocity_schedule, table or constant",
             )
         )
-    if doc.vehicle.aerodynamics.model == "parabolic_polar":
-        out.append(
-            issue(
-                "vehicle.aerodynamics",
-                f"{name} needs CL and CD as functions of angle "
-                "of attack (polynomial or table), not a normalized-lift polar",
-            )
-        )
+    out += polar_issues(doc, name)
     if doc.control_limits.alpha_rate_max_deg_s is not None:
         out.append(
             issue(
@@ -303,6 +296,14 @@ def scheduled_alpha_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
             )
         )
     return out
+
+
+def polar_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:
+    """Refusal of a normalized-lift polar by a method that flies CL and CD of alpha."""
+    if doc.vehicle.aerodynamics.model != "parabolic_polar":
+        return []
+    return [issue("vehicle.aerodynamics", f"{name} needs CL and CD as functions of angle of "
+                  "attack (polynomial or table), not a normalized-lift polar")]  # fmt: skip
 
 
 def spherical_only_issues(doc: ProblemDocument, name: str) -> list[FieldIssue]:

@@ -8,6 +8,7 @@ from worker.solver.methods.base import (
     FINAL_EXTREMES,
     issue,
     objective_issues,
+    polar_issues,
     spherical_only_issues,
 )
 
@@ -27,14 +28,7 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
                 '{"mode": "optimized", "min_deg": ..., "max_deg": ...}',
             )
         )
-    if doc.vehicle.aerodynamics.model == "parabolic_polar":
-        out.append(
-            issue(
-                "vehicle.aerodynamics",
-                f"{NAME} needs CL and CD as functions of angle of attack (polynomial or table), "
-                "not a normalized-lift polar",
-            )
-        )
+    out += polar_issues(doc, NAME)
     for field, given in (
         ("control_limits.bank_rate_max_deg_s", doc.control_limits.bank_rate_max_deg_s),
         ("control_limits.alpha_rate_max_deg_s", doc.control_limits.alpha_rate_max_deg_s),
