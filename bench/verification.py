@@ -5,7 +5,9 @@ warm-up): the optimization's wall time (the SCP loop), the verification's wall t
 compiled right-hand side and restarts at the nodes (the default), the verification with the
 Python right-hand side (the form used for models without a compiled form, also restarted), and
 the ratios verification / optimization. The aim is a verification at most 0.25 x the
-optimization. Ratios within one run are robust to a shared, noisy machine.
+optimization. Ratios within one run are robust to a shared, noisy machine. Scenarios of a method
+that flies phases (lgl-sqp: minutes per solve) are left out; their verification time is in
+``bench.skip_table3``'s rows.
 
     python -m bench.verification [--repeats 5] [--only NAME ...] [--nodes N ...]
 """
@@ -23,6 +25,7 @@ from worker.solver import verification
 from worker.solver.methods import METHODS
 from worker.solver.problem import build_problem
 from worker.solver.scenarios import get_scenario, list_scenarios
+from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.verification import verify
 from worker.solver.warmup import warm_up
 
@@ -43,7 +46,7 @@ def bench(name: str, repeats: int, nodes: int | None = None) -> dict[str, Any]:
         outcome = method.run(model, doc.method, None, None)
         optimization.append(time.perf_counter() - start)
     traj = outcome.trajectory
-    assert traj is not None
+    assert isinstance(traj, OptimizedTrajectory)
     verify(model, traj)
     compiled, python = [], []
     report: dict[str, Any] = {}
@@ -73,6 +76,11 @@ def bench(name: str, repeats: int, nodes: int | None = None) -> dict[str, Any]:
     }
 
 
+def _phased(name: str) -> bool:
+    """Whether scenario ``name``'s method flies phases (its own model and verification)."""
+    return METHODS[str(get_scenario(name).problem["method"]["name"])].phases
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
@@ -82,7 +90,11 @@ def main() -> None:
     )
     args = parser.parse_args()
     warm_up()
-    names = args.only or [s.name for s in list_scenarios()]
+    names = args.only or [s.name for s in list_scenarios() if not _phased(s.name)]
+    phased = [name for name in names if _phased(name)]
+    if phased:
+        parser.error(f"{', '.join(phased)}: a phased method's verification is timed by "
+                     "bench.skip_table3")  # fmt: skip
     print(
         "| scenario | method | nodes | optimization s | verification s | verification / "
         "optimization | Python right-hand side s | its ratio | integrator steps | feasible |"
