@@ -13,18 +13,23 @@ from app.schemas import FieldIssue, ProblemDocument
 from app.settings import Settings
 
 
-def _over(field: str, value: Any, cap: float, setting: str) -> FieldIssue:
-    return FieldIssue(
-        field=field,
-        message=f"{value} exceeds the server cap {setting}={cap:g}",
-        code="server_cap",
-    )
+def _over(field: str, value: Any, cap: float, setting: str, *, given: bool = True) -> FieldIssue:
+    """The issue of ``field`` over ``cap``; a method's default over it says so and what to give."""
+    if given:
+        message = f"{value} exceeds the server cap {setting}={cap:g}"
+    else:
+        message = (
+            f"the method's default {value} exceeds the server cap {setting}={cap:g}; give "
+            f"{field} at most {cap:g}"
+        )
+    return FieldIssue(field=field, message=message, code="server_cap")
 
 
 def cap_issues(problem: ProblemDocument, settings: Settings) -> list[FieldIssue]:
     """Every field of ``problem`` over a server cap (empty when all are within)."""
     issues: list[FieldIssue] = []
     method = problem.method
+    given = method.model_fields_set
     checks: list[tuple[str, float, float, str]] = [
         ("method.nodes", method.nodes, settings.max_nodes, "TRAJOPT_MAX_NODES"),
         (
@@ -42,7 +47,12 @@ def cap_issues(problem: ProblemDocument, settings: Settings) -> list[FieldIssue]
     ]
     for field, value, cap, setting in checks:
         if value > cap:
-            issues.append(_over(field, value, cap, setting))
+            name = field.split(".")[-1]
+            issues.append(_over(field, value, cap, setting, given=name in given))
+    for i, count in enumerate(getattr(method, "phase_nodes", None) or []):
+        if count > settings.max_nodes:
+            field = f"method.phase_nodes.{i}"
+            issues.append(_over(field, count, settings.max_nodes, "TRAJOPT_MAX_NODES"))
     zones = len(problem.no_fly_zones)
     if zones > settings.max_no_fly_zones:
         issues.append(

@@ -149,6 +149,13 @@ class Settings(BaseSettings):
         le=1,
         description="Share of each per-client rate limit one API key may use alone (1: all).",
     )
+    rate_auth_failures_per_window: int = Field(
+        default=30,
+        ge=0,
+        description="Failed authentications (401) one client address may cause per rate "
+        "window (api-keys mode); past it the address gets 429 before any key lookup. "
+        "0 disables.",
+    )
     rate_window_s: float = Field(default=60.0, gt=0)
     rate_submit_per_window: int = Field(default=60, ge=0, description="0 disables the limit.")
     rate_read_per_window: int = Field(default=1200, ge=0, description="0 disables the limit.")
@@ -158,8 +165,15 @@ class Settings(BaseSettings):
     max_batch_children: int = Field(
         default=100, ge=1, description="Children one batch may have (each an ordinary job)."
     )
-    max_nodes: int = Field(default=1000, ge=3)
-    max_iterations: int = Field(default=500, ge=1)
+    max_nodes: int = Field(
+        default=1000, ge=3, description="Most nodes of a job (of each phase for a phased one)."
+    )
+    max_iterations: int = Field(
+        default=2000,
+        ge=1,
+        description="Most iterations of a job; the default admits every method's own default "
+        "and maximum (lgl-sqp: 600 by default, at most 2000).",
+    )
     max_no_fly_zones: int = Field(default=20, ge=0)
     max_waypoints: int = Field(default=20, ge=0)
 
