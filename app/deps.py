@@ -17,7 +17,7 @@ from starlette.concurrency import run_in_threadpool
 from app.auth import API_KEY_HEADER, Principal, authenticate
 from app.dispatch import Dispatcher
 from app.errors import ApiError, not_found
-from app.ratelimit import Kind
+from app.ratelimit import AuthFailures, Kind
 from app.settings import Settings
 from app.state import ServiceState
 from app.storage.session import Database
@@ -70,14 +70,28 @@ async def get_principal(
     if service.settings.auth_mode == "single-user":  # no I/O: no thread-pool round trip
         principal = authenticate(service.database, service.settings, api_key)
     else:
-        principal = await run_in_threadpool(
-            authenticate, service.database, service.settings, api_key
-        )
+        address = request.client.host if request.client is not None else "unknown"
+        principal = await run_in_threadpool(_authenticated, service, api_key, address)
     for kind in ("job", "batch"):  # both ids are UUIDs
         ident = request.path_params.get(f"{kind}_id")
         if isinstance(ident, str) and _JOB_ID.fullmatch(ident) is None:
             raise not_found(kind, ident if len(ident) <= 64 else f"{ident[:64]}...")
     return principal
+
+
+def _authenticated(service: ServiceState, api_key: str | None, address: str) -> Principal:
+    """The principal of a key (a database lookup; run in the thread pool). An address that
+    failed too often is answered 429 before the lookup; every 401 counts against it."""
+    failures = AuthFailures(service.rate_limiter, service.settings, address)
+    refusal = failures.refusal() if failures.limited else None
+    if refusal is not None:
+        raise ApiError(429, "rate_limited", refusal.message, headers=refusal.headers)
+    try:
+        return authenticate(service.database, service.settings, api_key)
+    except ApiError as exc:
+        if exc.status == 401 and failures.limited:
+            failures.note_failure()
+        raise
 
 
 PrincipalDep = Annotated[Principal, Depends(get_principal)]

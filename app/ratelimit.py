@@ -273,6 +273,39 @@ class Quota:
             self._limiter.hit(bucket.name, bucket.limit, window_s)
 
 
+class AuthFailures:
+    """Failed authentications (401) per client address in a moving window: once the window is
+    full, that address is answered 429 before its key is looked up, so guessing keys or
+    hammering the key table costs the caller, not the database."""
+
+    def __init__(self, limiter: RateLimiter, settings: Settings, address: str) -> None:
+        self._limiter = limiter
+        self._limit = settings.rate_auth_failures_per_window
+        self._window_s = settings.rate_window_s
+        self._bucket = f"auth-failures:address:{quote(address, safe='')}"
+
+    @property
+    def limited(self) -> bool:
+        """Whether failed authentications are counted at all (0 disables)."""
+        return self._limit > 0
+
+    def refusal(self) -> Refusal | None:
+        """The 429 to answer when the address used up its failures; uses nothing."""
+        retry_after = self._limiter.test(self._bucket, self._limit, self._window_s)
+        if retry_after is None:
+            return None
+        window = f"{window_seconds(self._window_s)} s"
+        return Refusal(
+            f"too many failed authentications from this address: at most {self._limit} per "
+            f"{window}",
+            max(1, math.ceil(retry_after)),
+        )
+
+    def note_failure(self) -> None:
+        """Count one failed authentication (never refuses)."""
+        self._limiter.hit(self._bucket, self._limit, self._window_s)
+
+
 class Submitter(str):
     """A submitting client's name carrying the :class:`Quota` its submission is charged to.
 

@@ -1,7 +1,7 @@
 """Real services for the integration tests: PostgreSQL, Redis, a Celery worker and the API.
 
 Each run gets its own PostgreSQL schema, Redis database number and queue name, so concurrent
-runs do not collide. Unreachable services skip these tests locally and fail them under CI=true.
+runs do not collide. An unreachable service fails these tests (see ``harness.require``).
 """
 
 from __future__ import annotations
@@ -120,6 +120,7 @@ def stack_env(
         TRAJOPT_SWEEP_INTERVAL_S="0.5",
         TRAJOPT_RATE_READ_PER_WINDOW="0",
         TRAJOPT_RATE_SUBMIT_PER_WINDOW="0",
+        TRAJOPT_RATE_AUTH_FAILURES_PER_WINDOW="0",
     )
     return env
 

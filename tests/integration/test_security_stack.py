@@ -68,6 +68,7 @@ def two_apis(
         TRAJOPT_RATE_READ_PER_WINDOW="5",
         TRAJOPT_RATE_SUBMIT_PER_WINDOW="1",
         TRAJOPT_RATE_WINDOW_S="3600",
+        TRAJOPT_RATE_AUTH_FAILURES_PER_WINDOW="4",
     )
     key = create_api_key(env, "rate")
     first = ApiServer(env, tmp_path / "api-1.log", key)
@@ -97,6 +98,30 @@ def test_the_rate_limit_is_shared_by_api_processes(two_apis: tuple[ApiServer, Ap
     finally:
         one.close()
         two.close()
+
+
+def test_failed_authentications_are_limited_per_address_before_any_lookup(
+    two_apis: tuple[ApiServer, ApiServer],
+) -> None:
+    """Four 401s from one address, spread over two API processes, use up its window: the next
+    request from it is a 429 with Retry-After, a valid key included (the address is refused
+    before any key is looked up)."""
+    wrong = [ServiceClient(server.base_url, "tj_" + "x" * 43) for server in two_apis]
+    keyless = ServiceClient(two_apis[0].base_url)
+    valid = two_apis[1].client()
+    try:
+        assert valid.http.get("/v1/jobs").status_code == 200  # a success counts nothing
+        codes = [c.http.get("/v1/jobs").status_code for c in (*wrong, keyless, wrong[0])]
+        assert codes == [401] * 4
+        for c in (wrong[1], keyless, valid):
+            refused = c.http.get("/v1/jobs")
+            assert refused.status_code == 429, refused.text
+            assert refused.json()["error"]["code"] == "rate_limited"
+            assert "failed authentications" in refused.json()["error"]["message"]
+            assert 1 <= int(refused.headers["retry-after"]) <= 3600
+    finally:
+        for c in (*wrong, keyless, valid):
+            c.close()
 
 
 def test_the_python_client_sends_its_api_key(
