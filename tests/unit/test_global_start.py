@@ -5,6 +5,7 @@ searched), the start it hands on, and a method solving from it."""
 from __future__ import annotations
 
 import copy
+import time
 from typing import Any
 
 import numpy as np
@@ -116,3 +117,24 @@ def test_a_global_start_stopped_by_the_caller_ends_cancelled() -> None:
     result = solve_problem(ProblemDocument.model_validate(_doc()), should_stop=lambda: True)
     assert result["status"] == "cancelled"
     assert "global search" in result["failure"]["message"]
+
+
+@pytest.mark.slow
+def test_a_search_asking_for_more_than_its_job_stops_at_half_the_jobs_limit() -> None:
+    """A search's own time limit (here an hour) is cut to half the job's (10 s): the method gets
+    the rest and the job ends with a flown, verified trajectory instead of being killed at its
+    limit with nothing. Stopped from outside after 60 s so that a search that is not cut fails
+    the test instead of running for an hour."""
+    document = _doc(search={"seed": 1, "max_evaluations": 1_000_000, "time_limit_s": 3600})
+    document["method"]["time_limit_s"] = 10
+    begun = time.monotonic()
+    result = solve_problem(
+        ProblemDocument.model_validate(document),
+        should_stop=lambda: time.monotonic() - begun > 60,
+    )
+    assert result["status"] in ("succeeded", "timed_out"), result.get("failure")
+    note = result["provenance"]["initial_guess"]
+    assert "cut to 5 s" in note, note
+    assert result["trajectory"]["time_s"] and result["verification"] is not None
+    # the method ran on what the search left (the search may pass its 5 s by one generation)
+    assert result["timing"]["wall_s"] < 7.5  # not the 10 s of the whole job

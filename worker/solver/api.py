@@ -248,11 +248,14 @@ def solve_problem(
         build_phased_problem(problem) if phased else build_problem(problem)
     )
     base = model.base if isinstance(model, PhasedProblem) else model
+    options = problem.method
     start_note: str | None = None
     guess = problem.initial_guess
     if isinstance(model, EntryProblem) and guess is not None and guess.kind == "global":
         try:
-            model, start_note = with_global_start(problem, model, should_stop=should_stop)
+            model, start_note = with_global_start(
+                problem, model, should_stop=should_stop, job_time_limit_s=options.time_limit_s
+            )
         except GlobalStartStoppedError:
             return validated(
                 {
@@ -266,6 +269,9 @@ def solve_problem(
                 }
             )
         base = model
+        # the method has what the search left of the job's time limit (at least half of it)
+        spent = time.perf_counter() - start
+        options = options.model_copy(update={"time_limit_s": options.time_limit_s - spent})
     streamed: list[IterationRecord] = []
 
     def forward(record: IterationRecord) -> None:
@@ -287,7 +293,7 @@ def solve_problem(
     # numerical_error with where), not printed as a numpy warning on the caller's stderr
     with np.errstate(all="ignore"):
         # the runner hands the model on as it is: a phased method's run takes the phased one
-        outcome = METHODS[method].run(cast(Any, model), problem.method, forward, should_stop)
+        outcome = METHODS[method].run(cast(Any, model), options, forward, should_stop)
     wall = time.perf_counter() - scp_start
     status = _STATUS[outcome.status]
     failure = (

@@ -62,6 +62,27 @@ class SearchBudget:
             raise ValueError(f"time_limit_s must be None or a positive number, got {t!r}")
 
 
+JOB_SHARE = 0.5
+"""Most of a job's time limit a global search for a start may take: the rest is the method's,
+so a search asked for more than its job allows still hands the method a start in time."""
+
+
+def search_seconds(asked_s: float, job_limit_s: float) -> float:
+    """The wall seconds a search asked for ``asked_s`` may take in a job of ``job_limit_s``."""
+    return min(asked_s, JOB_SHARE * job_limit_s)
+
+
+def clamp_note(asked_s: float, job_limit_s: float) -> str:
+    """What the clamp of :func:`search_seconds` did, for the provenance ("" when nothing)."""
+    allowed = search_seconds(asked_s, job_limit_s)
+    if allowed >= asked_s:
+        return ""
+    return (
+        f"; its time limit {asked_s:g} s was cut to {allowed:g} s, {JOB_SHARE:.0%} of the job's "
+        f"time limit {job_limit_s:g} s (the rest is the method's)"
+    )
+
+
 @dataclass
 class SearchOutcome:
     """The best candidate a search found and how the search went (for the run's record and a

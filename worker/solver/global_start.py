@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 from app.schemas import ProblemDocument
 from app.schemas.guess import GlobalGuessOptions
-from worker.solver.global_search import SearchBudget, SearchOutcome
+from worker.solver.global_search import SearchBudget, SearchOutcome, clamp_note, search_seconds
 from worker.solver.phase_search import Parameterization, search_phases, start_path
 from worker.solver.phased_problem import build_phased_problem
 from worker.solver.problem import EntryProblem
@@ -30,9 +30,11 @@ def with_global_start(
     problem: EntryProblem,
     *,
     should_stop: Callable[[], bool] | None = None,
+    job_time_limit_s: float,
 ) -> tuple[EntryProblem, str]:
     """``problem`` with the global search's best flight as its start, and a line saying how it
-    was found (for the result's provenance)."""
+    was found (for the result's provenance). The search takes at most its share of the job's
+    time limit (``global_search.search_seconds``), whatever its own asks."""
     assert doc.initial_guess is not None
     options = doc.initial_guess.search or GlobalGuessOptions()
     phased = build_phased_problem(doc)
@@ -47,11 +49,16 @@ def with_global_start(
         algorithm=options.algorithm,
         seed=options.seed,
         population=options.population,
-        budget=SearchBudget(options.max_evaluations, options.time_limit_s),
+        budget=SearchBudget(
+            options.max_evaluations, search_seconds(options.time_limit_s, job_time_limit_s)
+        ),
         progress=progress,
     )
     path = start_path(par, outcome.x)
-    return dataclasses.replace(problem, guess=path), describe(outcome, path.t[-1], problem)
+    note = describe(outcome, path.t[-1], problem) + clamp_note(
+        options.time_limit_s, job_time_limit_s
+    )
+    return dataclasses.replace(problem, guess=path), note
 
 
 def describe(outcome: SearchOutcome, duration: float, problem: EntryProblem) -> str:

@@ -18,7 +18,7 @@ import numpy as np
 
 from app.schemas.methods import LglSqpOptions
 from worker.solver.conic import make_backend
-from worker.solver.global_search import SearchBudget
+from worker.solver.global_search import SearchBudget, search_seconds
 from worker.solver.methods.base import MethodResult
 from worker.solver.methods.lgl_sqp.guess import Guess, global_guess, guess_on_mesh
 from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
@@ -319,7 +319,9 @@ def run(
                 algorithm=gg.algorithm,
                 seed=gg.seed,
                 population=gg.population,
-                budget=SearchBudget(gg.max_evaluations, gg.time_limit_s),
+                budget=SearchBudget(
+                    gg.max_evaluations, search_seconds(gg.time_limit_s, options.time_limit_s)
+                ),
                 progress=progress,
             )
         except _StoppedError:
