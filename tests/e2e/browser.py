@@ -37,7 +37,7 @@ OFFLINE_FLAGS = (
 
 
 def chromium() -> str:
-    """The Chromium executable; skips the test when there is none (fails it under CI=true)."""
+    """The Chromium executable; fails the test when there is none (see ``harness.require``)."""
     for name in CANDIDATES:
         found = shutil.which(name)
         if found:

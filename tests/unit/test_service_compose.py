@@ -111,11 +111,31 @@ def test_images_are_built_from_the_project(compose: dict[str, Any]) -> None:
     assert build["dockerfile"] == "docker/Dockerfile"
     assert (DOCKER / build["context"] / "pyproject.toml").is_file()
     assert services["worker"]["image"] == services["api"]["image"]
+    # every service running the project's image builds it and never pulls it (`up --build`
+    # must not ask a registry for trajopt:latest)
+    for name in ("api", "worker"):
+        assert services[name]["build"] == build, name
+        assert services[name]["pull_policy"] == "build", name
     dockerfile = (DOCKER / "Dockerfile").read_text()
     assert "COPY pyproject.toml" in dockerfile
-    assert re.search(r"pip install \.", dockerfile)
     assert 'ENTRYPOINT ["trajopt"]' in dockerfile
     assert re.search(r"^USER (?!root)", dockerfile, re.MULTILINE)
+
+
+def test_the_image_installs_the_pinned_numerical_libraries() -> None:
+    """The image installs with constraints.txt, as the tests do: production runs the versions
+    the golden outputs are checked against, and the file reaches the build context."""
+    dockerfile = (DOCKER / "Dockerfile").read_text()
+    installs = re.findall(r"pip install ([^\\\n&]*)", dockerfile)
+    assert installs, "the Dockerfile installs nothing"
+    assert all("-c constraints.txt" in line for line in installs), installs
+    copied = re.search(r"^COPY (.*) \./$", dockerfile, re.MULTILINE)
+    assert copied is not None and "constraints.txt" in copied.group(1).split()
+    ignore = (DOCKER / "Dockerfile.dockerignore").read_text().splitlines()
+    assert "!constraints.txt" in ignore
+    pins = (DOCKER.parent / "constraints.txt").read_text()
+    for library in ("numpy", "scipy", "clarabel", "numba", "cvxpy", "pymoo", "ussa1976"):
+        assert re.search(rf"^{library}==", pins, re.MULTILINE), library
 
 
 def test_the_deployment_requires_api_keys_and_a_secret(compose: dict[str, Any]) -> None:
