@@ -88,6 +88,7 @@ class App:
             api_key_secret="fuzz-only-0123456789abcdef0123456789",
             rate_read_per_window=0,
             rate_submit_per_window=0,
+            rate_auth_failures_per_window=0,  # hostile keys are the point: no lockout
             max_active_jobs=10_000,
             event_ping_interval_s=0.05,
         )
