@@ -174,6 +174,8 @@ def plan_children(
                 problem=submission.document,
                 scenario=base.scenario,
                 batch_parameters=child.parameters,
+                warnings=submission.stored_warnings(),
+                overrides=base.patches,
             )
         )
     if issues:

@@ -1,5 +1,5 @@
-"""The ``trajopt`` command: list scenarios, solve in-process, run the API or a worker, and manage
-API keys.
+"""The ``trajopt`` command: list scenarios, solve in-process, submit to a service and fetch a
+job's problem, run the API or a worker, and manage API keys.
 
 Every refusal is one ``error: …`` line on stderr (one per bad setting or per document issue),
 never a traceback. Exit codes:
@@ -100,6 +100,13 @@ def _build_parser() -> argparse.ArgumentParser:
 
     add_submit_arguments(submit)
 
+    problem = sub.add_parser(
+        "problem", help="print the problem document a service job solves (as stored)"
+    )
+    from app.submit_cli import add_problem_arguments
+
+    add_problem_arguments(problem)
+
     plot = sub.add_parser("plot", help="render the plots of a result document (PNG or SVG)")
     plot.add_argument("result", help="a result document (trajopt solve -o, or GET /result)")
     plot.add_argument("-o", "--output", required=True, help="directory for the plot files")
@@ -199,11 +206,14 @@ def _dispatch(args: argparse.Namespace) -> int:
             return trajectory_csv(result)
 
         return solver_cli.run(args, csv_table)
-    if args.command == "submit":
+    if args.command in ("submit", "problem"):
         from app import submit_cli
 
         server = args.server or os.environ.get("TRAJOPT_SERVER") or submit_cli.DEFAULT_SERVER
-        return submit_cli.run(args, server, args.api_key or os.environ.get("TRAJOPT_API_KEY"))
+        api_key = args.api_key or os.environ.get("TRAJOPT_API_KEY")
+        if args.command == "problem":
+            return submit_cli.fetch_problem(args, server, api_key)
+        return submit_cli.run(args, server, api_key)
     if args.command == "plot":
         from app.report.files import plot_command
 

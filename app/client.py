@@ -297,6 +297,13 @@ class TrajoptClient:
         result: dict[str, Any] = self._json(f"/v1/jobs/{job_id}/result")
         return result
 
+    def problem(self, job_id: str) -> dict[str, Any]:
+        """The problem document the job solves, normalized (defaults filled in) after its
+        scenario, overrides and start were applied: its canonical JSON hashes to the result's
+        ``provenance.problem_sha256``."""
+        problem: dict[str, Any] = self._json(f"/v1/jobs/{job_id}/problem")
+        return problem
+
     def history(self, job_id: str) -> list[dict[str, Any]]:
         """The iteration records so far."""
         return list(self._json(f"/v1/jobs/{job_id}/history")["iterations"])

@@ -1,7 +1,9 @@
-"""The job use cases behind the routes: submit, show, list, cancel, result and history."""
+"""The job use cases behind the routes: submit, show, list, cancel, problem, result and
+history."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import logging
@@ -19,6 +21,7 @@ from app.errors import ApiError, not_found
 from app.ratelimit import Quota, Submitter
 from app.schemas import FieldIssue
 from app.schemas.guess import guess_columns
+from app.schemas.plausibility import PlausibilityWarning
 from app.settings import Settings
 from app.storage import quota as quota_store
 from app.storage import repository
@@ -74,10 +77,24 @@ def job_view(job: Job, settings: Settings, now: datetime | None = None) -> JobVi
         progress=_progress(job),
         error=error,
         solve_s=job.solve_s,
+        warnings=_warnings(job),
         links=JobLinks(
-            self=base, result=f"{base}/result", history=f"{base}/history", events=f"{base}/events"
+            self=base,
+            result=f"{base}/result",
+            history=f"{base}/history",
+            events=f"{base}/events",
+            problem=f"{base}/problem",
         ),
     )
+
+
+def _warnings(job: Job) -> list[PlausibilityWarning]:
+    """The plausibility warnings stored with the job (none for a job stored before them)."""
+    try:
+        return [PlausibilityWarning.model_validate(w) for w in job.warnings or []]
+    except ValidationError:  # an unexpected record shape must not hide the job
+        log.warning("job %s: unreadable warnings %r", job.id, job.warnings)
+        return []
 
 
 def _progress(job: Job) -> Progress | None:
@@ -196,6 +213,8 @@ def _submit(
         scenario=submission.scenario,
         idempotency_key=key,
         request_hash=fingerprint,
+        warnings=submission.stored_warnings(),
+        overrides=submission.patches,
     )
     try:
         with database.session() as session:
@@ -289,7 +308,8 @@ def resolve_initial_guess(database: Database, owner: str, submission: Submission
         **submission.document,
         "initial_guess": {"from_job": guess.from_job, "trajectory": columns},
     }
-    return resolve_submission(document)
+    resolved = resolve_submission(document)  # a scenario job keeps its scenario and patches
+    return dataclasses.replace(resolved, scenario=submission.scenario, patches=submission.patches)
 
 
 def mark_sent(database: Database, job_id: str) -> None:
@@ -355,6 +375,15 @@ def get_result(database: Database, owner: str, job_id: str) -> str:
             f"job {job_id} ended {found.status} without a result{reason}",
         )
     return found.result_json
+
+
+def get_problem(database: Database, owner: str, job_id: str) -> str:
+    """The owner's job's problem document as solved, as stored JSON text; 404 otherwise."""
+    with database.reader() as session:
+        text = repository.get_problem_text(session, job_id, owner)
+    if text is None:
+        raise not_found("job", job_id)
+    return text
 
 
 def get_history(database: Database, owner: str, job_id: str) -> HistoryView:

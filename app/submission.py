@@ -23,21 +23,32 @@ from pydantic.fields import FieldInfo
 
 from app.errors import MAX_ISSUES, ApiError, issues_message
 from app.schemas import FieldIssue, ProblemDocument, issues_from_validation_error
+from app.schemas.plausibility import PlausibilityWarning, plausibility_warnings
 from app.views import ScenarioJobRequest
 
 
 @dataclass(frozen=True)
 class Submission:
-    """A validated problem ready to store."""
+    """A validated problem ready to store; a scenario's with the patches it was made with."""
 
     problem: ProblemDocument
     document: dict[str, Any]
     scenario: str | None
+    patches: dict[str, Any] | None = None
+    """A scenario request's ``{"overrides": ..., "method": ...}`` as submitted."""
 
     @property
     def method(self) -> str:
         """Name of the selected solution method."""
         return str(self.problem.method.name)
+
+    def warnings(self) -> list[PlausibilityWarning]:
+        """The problem's plausibility warnings (legal values far outside what vehicles fly)."""
+        return plausibility_warnings(self.problem)
+
+    def stored_warnings(self) -> list[dict[str, Any]]:
+        """:meth:`warnings` as stored with the job."""
+        return [w.model_dump(mode="json") for w in self.warnings()]
 
 
 JsonPath = tuple[str, ...]
@@ -221,7 +232,7 @@ def _validation_issues(exc: ValidationError, what: str = "problem") -> ApiError:
     return invalid(listed, what, total=exc.error_count())
 
 
-def _scenario_document(body: dict[str, Any]) -> tuple[dict[str, Any], str]:
+def _scenario_document(body: dict[str, Any]) -> tuple[dict[str, Any], str, dict[str, Any]]:
     from worker.solver.scenarios import get_scenario
 
     try:
@@ -236,7 +247,7 @@ def _scenario_document(body: dict[str, Any]) -> tuple[dict[str, Any], str]:
     document = apply_overrides(scenario.problem, request.overrides)
     if request.method is not None:
         document = apply_overrides(document, {"method": request.method})
-    return document, scenario.name
+    return document, scenario.name, {"overrides": request.overrides, "method": request.method}
 
 
 def resolve_submission(body: Any) -> Submission:
@@ -245,14 +256,20 @@ def resolve_submission(body: Any) -> Submission:
         issue = FieldIssue(field="", message="the body must be a JSON object", code="dict_type")
         raise invalid([issue], "request")
     scenario: str | None = None
+    patches: dict[str, Any] | None = None
     document = body
     if "scenario" in body:
-        document, scenario = _scenario_document(body)
+        document, scenario, patches = _scenario_document(body)
     try:
         problem = ProblemDocument.model_validate(document)
     except ValidationError as exc:
         raise _validation_issues(exc) from None
-    return Submission(problem=problem, document=problem.model_dump(mode="json"), scenario=scenario)
+    return Submission(
+        problem=problem,
+        document=problem.model_dump(mode="json"),
+        scenario=scenario,
+        patches=patches,
+    )
 
 
 def check_method_support(submission: Submission) -> None:

@@ -1,7 +1,11 @@
 """``trajopt submit``: send a problem (a file or a built-in scenario) to a running service with
 :class:`app.client.TrajoptClient`, and optionally wait for it, print its progress and save its
 result and trajectory CSV. Exit codes as ``trajopt solve``: 0 succeeded, 1 the job did not
-succeed, 2 the service refused the problem or could not be reached (one line each)."""
+succeed, 2 the service refused the problem or could not be reached (one line each).
+
+``trajopt problem``: fetch the problem document a job solves (what its result's
+``provenance.problem_sha256`` fingerprints). Exit 0, or 2 when the service refuses or cannot be
+reached."""
 
 from __future__ import annotations
 
@@ -20,12 +24,7 @@ DEFAULT_SERVER = "http://127.0.0.1:8000"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``submit`` subcommand's arguments."""
     parser.add_argument("problem", help="a built-in scenario name or a path to a problem JSON file")
-    parser.add_argument(
-        "--server",
-        default=None,
-        help=f"the service's base URL (default: $TRAJOPT_SERVER or {DEFAULT_SERVER})",
-    )
-    parser.add_argument("--api-key", default=None, help="API key (default: $TRAJOPT_API_KEY)")
+    add_service_arguments(parser)
     parser.add_argument("--nodes", type=int, default=None, help="number of discretization nodes")
     parser.add_argument("--wait", action="store_true", help="wait for the job and report it")
     parser.add_argument(
@@ -34,6 +33,55 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", help="with --wait: write the result document here")
     parser.add_argument("--csv", help="with --wait: write the trajectory CSV here")
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+
+
+def add_service_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the service is and the key to it (``submit`` and ``problem``)."""
+    parser.add_argument(
+        "--server",
+        default=None,
+        help=f"the service's base URL (default: $TRAJOPT_SERVER or {DEFAULT_SERVER})",
+    )
+    parser.add_argument("--api-key", default=None, help="API key (default: $TRAJOPT_API_KEY)")
+
+
+def add_problem_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``problem`` subcommand's arguments."""
+    parser.add_argument("job_id", help="the job's id (as trajopt submit printed it)")
+    add_service_arguments(parser)
+    parser.add_argument("-o", "--output", help="write the document to this file, not stdout")
+
+
+def fetch_problem(args: argparse.Namespace, server: str, api_key: str | None) -> int:
+    """Print (or write to ``--output``) the problem document job ``args.job_id`` solves, and
+    its SHA-256 in canonical JSON on stderr; the exit code."""
+    from app.schemas.fingerprint import document_sha256
+    from worker.solver.cli import InputError, check_output
+
+    try:
+        if args.output:
+            check_output(args.output)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    with TrajoptClient(server, api_key) as client:
+        try:
+            problem = client.problem(args.job_id)
+        except ApiError as exc:
+            print(f"error: the service refused: {exc.code}: {exc.message}", file=sys.stderr)
+            return 2
+        except httpx.TransportError as exc:
+            print(f"error: cannot reach {server}: {exc}", file=sys.stderr)
+            return 2
+    text = json.dumps(problem, indent=1)
+    if args.output:
+        with open(args.output, "w", encoding="utf-8") as handle:
+            handle.write(text + "\n")
+        print(f"problem written to {args.output}", file=sys.stderr)
+    else:
+        print(text)
+    print(f"sha256 {document_sha256(problem)} (canonical JSON)", file=sys.stderr)
+    return 0
 
 
 def request_body(source: str, nodes: int | None) -> dict[str, Any]:

@@ -8,6 +8,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.schemas import FieldIssue
+from app.schemas.plausibility import PlausibilityWarning
 from app.schemas.result import HistoryRecord
 
 JobStatusName = Literal["queued", "running", "succeeded", "failed", "cancelled", "timed_out"]
@@ -101,6 +102,7 @@ class JobLinks(BaseModel):
     result: str
     history: str
     events: str
+    problem: str = Field(..., description="The problem document as solved.")
 
 
 class JobView(BaseModel):
@@ -137,6 +139,7 @@ class JobView(BaseModel):
                         "result": f"/v1/jobs/{_JOB_ID}/result",
                         "history": f"/v1/jobs/{_JOB_ID}/history",
                         "events": f"/v1/jobs/{_JOB_ID}/events",
+                        "problem": f"/v1/jobs/{_JOB_ID}/problem",
                     },
                 }
             ]
@@ -161,6 +164,11 @@ class JobView(BaseModel):
     progress: Progress | None = None
     error: JobErrorInfo | None = None
     solve_s: float | None = Field(None, description="Solver wall time of the finished job.")
+    warnings: list[PlausibilityWarning] = Field(
+        default_factory=list,
+        description="Legal values of the problem far outside what entry vehicles fly (likely "
+        "slips of units); they only inform.",
+    )
     links: JobLinks
 
 
@@ -215,10 +223,16 @@ class MethodView(BaseModel):
 
 
 class ValidationReport(BaseModel):
-    """A valid problem, normalized (defaults filled in) as it would be solved."""
+    """A valid problem, normalized (defaults filled in) as it would be solved, and its legal
+    values far outside what entry vehicles fly."""
 
     valid: Literal[True] = True
     issues: list[FieldIssue] = Field(default_factory=list)
+    warnings: list[PlausibilityWarning] = Field(
+        default_factory=list,
+        description="Legal values far outside what entry vehicles fly (likely slips of units, "
+        "e.g. a speed in km/s); the problem is valid and would be solved as it is.",
+    )
     problem: dict[str, Any]
 
 

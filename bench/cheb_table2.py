@@ -3,8 +3,8 @@
 case (``cav-h-min-time``), side by side in one run.
 
 Rows: ``cheb-scvx`` on one Chebyshev interval at 25/30/40/60 points (the paper's Cheb-SCvx);
-at its defaults (201 points on 20 intervals); with every interval of degree 1 at 80 and 300
-points (equally spaced points and the trapezoidal rule: the paper's Eq-SCvx); then the NLP
+at its defaults (201 points on 20 intervals); with 79 and 299 intervals of the method's lowest
+degree, 2 (159 and 599 equally spaced points, Simpson's rule: the paper's Eq-SCvx); then the NLP
 (``bench.nlp_collocation``: Hermite-Simpson on a uniform time mesh, IPOPT through CasADi) at
 the given interval counts. For each SCP row: status, iterations, optimization and verification
 time, wall / sum of conic solve time, the propagated terminal flight-path-angle error, the final
@@ -97,10 +97,10 @@ def main() -> None:
     rows.append(scp_row("cheb-scvx, defaults (201 points, 20 intervals)", {}))
     rows.extend(
         scp_row(
-            f"equally spaced SCvx (degree-1 intervals), {n} points",
-            {"nodes": n, "intervals": n - 1},
+            f"equally spaced SCvx ({k} intervals of degree 2), {2 * k + 1} points",
+            {"nodes": 2 * k + 1, "intervals": k},
         )
-        for n in (80, 300)
+        for k in (79, 299)
     )
     nlp = [nlp_row(n) for n in args.nlp_intervals]
     print(table(rows + nlp, nlp[0]["optimization_s"] if nlp else None))

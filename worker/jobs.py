@@ -63,6 +63,8 @@ class _Attempt:
     stored: int | None = 0
     """Iterations the stored history holds, as this attempt's last write left it (``None``
     after a write that failed: it may or may not have been committed)."""
+    origin: dict[str, Any] | None = None
+    """A scenario job's scenario and patches, for its result's provenance."""
 
     def elapsed(self) -> float:
         return time.monotonic() - self.started
@@ -321,6 +323,33 @@ def _chained(database: Any, claim: Any, problem_raw: dict[str, Any]) -> dict[str
         return problem_raw
 
 
+def _origin(claim: Any) -> dict[str, Any] | None:
+    """A scenario job's scenario and the patches it was submitted with (None for a problem
+    document, or a job stored before its patches were)."""
+    if claim.scenario is None or claim.overrides is None:
+        return None
+    patches = claim.overrides
+    return {
+        "name": claim.scenario,
+        "overrides": patches.get("overrides") or {},
+        "method": patches.get("method"),
+    }
+
+
+def _solved(attempt: _Attempt, problem_raw: dict[str, Any]) -> dict[str, Any]:
+    """``problem_raw`` (a chained child's problem with its sibling's start) normalized and
+    stored as the problem the job solves, so GET /problem and the result's fingerprint agree."""
+    from app.schemas import ProblemDocument
+
+    document: dict[str, Any] = ProblemDocument.model_validate(problem_raw).model_dump(mode="json")
+    try:
+        with attempt.database.autocommit() as session:
+            repository.record_solved_problem(session, attempt.job_id, attempt.attempt, document)
+    except Exception:
+        log.warning("job %s: could not store the problem it solves", attempt.job_id, exc_info=True)
+    return document
+
+
 def execute_job(
     job_id: str,
     *,
@@ -355,9 +384,11 @@ def execute_job(
         notify=notify,
         passthrough=timeout_exceptions,
         lease_s=settings.lease_s,
+        origin=_origin(claim),
     )
     if claim.batch_id is not None:
-        problem_raw = _chained(database, claim, problem_raw)
+        chained = _chained(database, claim, problem_raw)
+        problem_raw = problem_raw if chained is problem_raw else _solved(attempt, chained)
     log.info("job %s: attempt %d started", job_id, claim.attempt)
     attempt.heartbeat = Heartbeat(database, job_id, claim.attempt, settings.lease_s)
     attempt.heartbeat.start()
@@ -457,4 +488,6 @@ def _solve(
             "the solver returned no result document",
             attempt.elapsed(),
         )
+    if attempt.origin is not None and isinstance(result.get("provenance"), dict):
+        result["provenance"]["scenario"] = attempt.origin
     return _outcome_from_result(result, attempt)

@@ -6,7 +6,7 @@ import json
 from importlib.resources import files
 from typing import Any
 
-from app.schemas import RLV_MIN_HEAT_LOAD
+from app.schemas import RLV_MIN_HEAT_LOAD, ProblemDocument
 
 JOB_ID = "3f2b8c1e-6d0a-4c55-9d1e-2a7f3b9c4e10"
 """The job id of the examples."""
@@ -68,6 +68,13 @@ RESULT_EXAMPLES: dict[str, dict[str, Any]] = {
         "summary": "Failed: converged, but the propagated controls miss the targets",
         "description": "rlv-min-heat-load with 21 nodes; history cut to the first and last.",
         "value": RESULT_FAILED,
+    },
+}
+
+PROBLEM_DOCUMENT_EXAMPLES: dict[str, dict[str, Any]] = {
+    "scenario": {
+        "summary": "rlv-min-heat-load as solved (every default filled in)",
+        "value": ProblemDocument.model_validate(RLV_MIN_HEAT_LOAD).model_dump(mode="json"),
     },
 }
 

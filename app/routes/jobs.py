@@ -1,4 +1,5 @@
-"""``/v1/jobs``: submit, list, show, cancel, and read the result and the history of jobs."""
+"""``/v1/jobs``: submit, list, show, cancel, and read the problem, the result and the history of
+jobs."""
 
 from __future__ import annotations
 
@@ -10,7 +11,12 @@ from app import jobs_service
 from app.body import ProblemBody, problem_request_body
 from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep, SubmitterDep
 from app.routes.accepted import IdempotencyKey, accepted
-from app.routes.examples import HISTORY_EXAMPLES, PROBLEM_EXAMPLES, RESULT_EXAMPLES
+from app.routes.examples import (
+    HISTORY_EXAMPLES,
+    PROBLEM_DOCUMENT_EXAMPLES,
+    PROBLEM_EXAMPLES,
+    RESULT_EXAMPLES,
+)
 from app.views import ErrorResponse, HistoryView, JobPage, JobStatusName, JobView
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
@@ -113,6 +119,32 @@ def get_job(job_id: str, database: DatabaseDep, settings: SettingsDep, owner: Ow
 def get_result(job_id: str, database: DatabaseDep, owner: OwnerDep) -> Response:
     """The full result document of a finished job (409 while queued or running)."""
     return Response(jobs_service.get_result(database, owner, job_id), media_type="application/json")
+
+
+@router.get(
+    "/{job_id}/problem",
+    response_class=Response,
+    responses={
+        200: {
+            "description": "The problem document the job solves, normalized (every default "
+            "filled in) after its scenario, overrides and start were applied; its SHA-256 in "
+            "canonical JSON is the result's provenance.problem_sha256.",
+            "content": {
+                "application/json": {
+                    "schema": {"$ref": f"{COMPONENTS}/ProblemDocument"},
+                    "examples": PROBLEM_DOCUMENT_EXAMPLES,
+                }
+            },
+        },
+        **_NOT_FOUND,
+    },
+    summary="Fetch the problem as solved",
+)
+def get_problem(job_id: str, database: DatabaseDep, owner: OwnerDep) -> Response:
+    """The problem document the job solves, as stored (available from submission on)."""
+    return Response(
+        jobs_service.get_problem(database, owner, job_id), media_type="application/json"
+    )
 
 
 @router.get(

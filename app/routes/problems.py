@@ -25,8 +25,9 @@ def validate_problem(
     body: ProblemBody,
     settings: SettingsDep,
 ) -> ValidationReport:
-    """All errors at once (422), or the normalized document with defaults filled in (200)."""
+    """All errors at once (422), or the normalized document with defaults filled in and the
+    legal values far outside what entry vehicles fly listed as warnings (200)."""
     submission = resolve_submission(body)
     check_server_caps(submission.problem, settings)
     check_method_support(submission)
-    return ValidationReport(problem=submission.document)
+    return ValidationReport(problem=submission.document, warnings=submission.warnings())

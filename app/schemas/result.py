@@ -13,6 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from app.schemas.plausibility import PlausibilityWarning
+
 ResultStatus = Literal["succeeded", "failed", "cancelled", "timed_out"]
 
 Number = float | None
@@ -465,12 +467,41 @@ class Verification(_Record):
     )
 
 
+class Software(_Record):
+    """This project as it ran the solve."""
+
+    name: str = Field(..., description="The distribution's name (entry-trajopt).")
+    version: str | None = Field(None, description="Its installed version (null: not installed).")
+    revision: str | None = Field(
+        None,
+        description="The git commit it ran from, with -dirty when the checkout had uncommitted "
+        "changes; null when not run from a git checkout (an installed package).",
+    )
+
+
+class ScenarioOrigin(_Record):
+    """A job submitted as a built-in scenario: the scenario and the patches applied to it."""
+
+    name: str = Field(..., description="The built-in scenario (GET /v1/scenarios/{name}).")
+    overrides: dict[str, Any] = Field(
+        default_factory=dict,
+        description="The request's overrides (a JSON Merge Patch of the scenario's problem), as "
+        "submitted (for a batch's child: its base's).",
+    )
+    method: dict[str, Any] | None = Field(
+        None, description="The request's method patch, applied after the overrides (null: none)."
+    )
+
+
 class Provenance(_Record):
-    """What is needed to reproduce the result: versions, options, platform, dynamics path."""
+    """What is needed to reproduce the result: the problem's fingerprint, where it came from,
+    versions, options, platform, dynamics path."""
 
     created_at: str | None = Field(None, description="When the document was made (ISO 8601).")
     packages: dict[str, str | None] = Field(
-        default_factory=dict, description="Installed version of each package (null: absent)."
+        default_factory=dict,
+        description="Installed version of each library whose version can change an answer "
+        "(the numerical, solver, compiler, atmosphere and search libraries; null: absent).",
     )
     python: str | None = Field(None, description="Python version.")
     platform: str | None = Field(None, description="Operating system and machine.")
@@ -478,6 +509,24 @@ class Provenance(_Record):
         default_factory=dict, description="The method's options as solved (defaults filled in)."
     )
     problem_name: str | None = Field(None, description="The problem document's name.")
+    problem_sha256: str | None = Field(
+        None,
+        description="SHA-256 (hex) of the problem document as solved, in canonical JSON: keys "
+        "sorted, no whitespace, as Python's json.dumps(problem, sort_keys=True, "
+        "separators=(',', ':')) writes it, UTF-8 (docs/problem-contract.md, 'Problem "
+        "fingerprint'). GET /v1/jobs/{id}/problem returns that document.",
+    )
+    source_job: str | None = Field(
+        None,
+        description="Only for a start from an earlier job's answer (initial_guess.from_job, or "
+        "a chained batch's sibling): that job's id.",
+    )
+    scenario: ScenarioOrigin | None = Field(
+        None,
+        description="Only for a service job submitted as a built-in scenario: the scenario and "
+        "the overrides and method patch it was submitted with.",
+    )
+    software: Software | None = Field(None, description="This project's version and revision.")
     dynamics: Literal["compiled", "numpy"] | None = Field(
         None,
         description="compiled: the model's equations of motion have a compiled form (used by "
@@ -540,3 +589,8 @@ class ResultDocument(_Record):
     )
     timing: Timing
     provenance: Provenance = Field(default_factory=Provenance)
+    warnings: list[PlausibilityWarning] = Field(
+        default_factory=list,
+        description="Legal values of the problem far outside what entry vehicles fly (likely "
+        "slips of units); a failed result's advice names them first.",
+    )

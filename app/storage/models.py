@@ -127,6 +127,10 @@ class Job(Base):
     """Position of the child in its batch (0-based)."""
     batch_parameters: Mapped[dict[str, Any] | None] = mapped_column(JsonType, nullable=True)
     """What the batch set in this child: JSON pointer -> value."""
+    warnings: Mapped[list[dict[str, Any]] | None] = mapped_column(JsonType, nullable=True)
+    """The problem's plausibility warnings (``app.schemas.plausibility``), found at submission."""
+    overrides: Mapped[dict[str, Any] | None] = mapped_column(JsonType, nullable=True)
+    """A scenario job's patches as submitted: ``{"overrides": ..., "method": ...}``."""
 
 
 class Batch(Base):

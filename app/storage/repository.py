@@ -63,6 +63,8 @@ class NewJob:
     batch_id: str | None = None
     batch_index: int | None = None
     batch_parameters: dict[str, Any] | None = None
+    warnings: list[dict[str, Any]] | None = None
+    overrides: dict[str, Any] | None = None
 
 
 DISPATCH_CLAIM_S = 10.0
@@ -95,6 +97,8 @@ def create_job(session: Session, new: NewJob) -> Job:
         batch_id=new.batch_id,
         batch_index=new.batch_index,
         batch_parameters=new.batch_parameters,
+        warnings=new.warnings,
+        overrides=new.overrides,
     )
     session.add(job)
     session.flush()
@@ -139,6 +143,29 @@ def get_result_text(session: Session, job_id: str, owner: str) -> ResultText | N
     if text in (None, "null"):
         return ResultText(status, code, message, None)
     return ResultText(status, code, message, text)
+
+
+def get_problem_text(session: Session, job_id: str, owner: str) -> str | None:
+    """The owner's job's problem document as solved, as stored JSON text (not parsed); None
+    when there is no such job of ``owner``."""
+    text = session.execute(
+        select(cast(Job.problem, Text)).where(Job.id == job_id, Job.owner == owner)
+    ).scalar_one_or_none()
+    return None if text is None else str(text)
+
+
+def record_solved_problem(
+    session: Session, job_id: str, attempt: int, problem: dict[str, Any]
+) -> bool:
+    """Store the problem the running attempt solves in place of the submitted one (a chained
+    batch's child started from a sibling's answer); False if the attempt no longer owns it."""
+    stmt = (
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.RUNNING.value, Job.attempts == attempt)
+        .values(problem=problem)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
 
 
 def _result_with_history(session: Session) -> Any:
@@ -273,6 +300,8 @@ class Claim:
     problem: dict[str, Any] | None = field(default=None, compare=False)
     batch_id: str | None = None
     batch_parameters: dict[str, Any] | None = field(default=None, compare=False)
+    scenario: str | None = None
+    overrides: dict[str, Any] | None = field(default=None, compare=False)
 
 
 def _claimable(now: datetime) -> Any:
@@ -314,12 +343,19 @@ def claim_attempt(session: Session, job_id: str, max_attempts: int, lease_s: flo
             progress=None,
             history=[],
         )
-        .returning(Job.attempts, Job.problem, Job.batch_id, Job.batch_parameters)
+        .returning(
+            Job.attempts,
+            Job.problem,
+            Job.batch_id,
+            Job.batch_parameters,
+            Job.scenario,
+            Job.overrides,
+        )
         .execution_options(**_NO_SYNC)
     )
     claimed = session.execute(stmt).one_or_none()
     if claimed is not None:
-        return Claim(ClaimState.CLAIMED, int(claimed[0]), claimed[1], claimed[2], claimed[3])
+        return Claim(ClaimState.CLAIMED, int(claimed[0]), *claimed[1:])
     job = session.execute(
         select(Job.status, Job.attempts, Job.cancel_requested, Job.lease_expires_at).where(
             Job.id == job_id
@@ -910,6 +946,8 @@ def create_batch(
                 batch_id=batch.id,
                 batch_index=index,
                 batch_parameters=child.batch_parameters,
+                warnings=child.warnings,
+                overrides=child.overrides,
             ),
         )
         for index, child in enumerate(children)

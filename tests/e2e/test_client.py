@@ -5,6 +5,7 @@ rate-limited service after the Retry-After the service sends, and the command li
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import subprocess
@@ -146,9 +147,13 @@ def test_a_chained_batch_starts_each_child_from_a_finished_sibling(client: Trajo
     results = [client.result(r["job_id"]) for r in rows]
     # one local worker: the children run in order, the first from the method's own guess
     assert "initial_guess" not in results[0]["provenance"]
-    for result in results[1:]:
+    for row, result in zip(rows[1:], results[1:], strict=True):
         assert result["provenance"]["initial_guess"] == "the given trajectory (40 points)"
         assert result["timing"]["iterations"] <= 0.75 * results[0]["timing"]["iterations"]
+        solved = client.problem(row["job_id"])  # with the sibling's start it was given
+        assert result["provenance"]["source_job"] == solved["initial_guess"]["from_job"]
+        canonical = json.dumps(solved, sort_keys=True, separators=(",", ":")).encode()
+        assert result["provenance"]["problem_sha256"] == hashlib.sha256(canonical).hexdigest()
 
 
 def test_a_job_starts_from_an_earlier_job(client: TrajoptClient) -> None:

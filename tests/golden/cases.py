@@ -32,6 +32,11 @@ VOLATILE_KEYS = frozenset(
 )
 """Wall-clock figures and the environment: not outputs of the arithmetic."""
 
+INPUT_KEYS = frozenset({"software", "problem_sha256", "warnings"})
+"""What a result says of its input and its software (this project's version and revision, the
+problem's fingerprint, its plausibility warnings): not outputs of the arithmetic, and the
+fingerprint changes with any default the contract adds."""
+
 LEFT_OUT_KEYS = frozenset({"propagated"})
 """Arithmetic the recordings leave out for their size: the verification's dense propagated
 flight (about 200 kB a case), drawn from the same propagation whose final state, deviations,
@@ -85,7 +90,7 @@ def _strip(value: Any) -> Any:
         return {
             k: _strip(v)
             for k, v in value.items()
-            if k not in VOLATILE_KEYS and k not in LEFT_OUT_KEYS
+            if k not in VOLATILE_KEYS and k not in LEFT_OUT_KEYS and k not in INPUT_KEYS
         }
     if isinstance(value, list):
         return [_strip(v) for v in value]

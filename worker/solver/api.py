@@ -13,8 +13,9 @@ from typing import Any, cast
 import numpy as np
 
 from app.schemas import ProblemDocument
+from app.schemas.plausibility import plausibility_warnings
 from app.schemas.result import json_ready
-from worker.solver.diagnosis import BUDGET_CODES, advice, stall_note
+from worker.solver.diagnosis import BUDGET_CODES, advice, blame_input, input_advice, stall_note
 from worker.solver.finite import non_finite_entries
 from worker.solver.global_start import GlobalStartStoppedError, with_global_start
 from worker.solver.methods import METHODS, check_support
@@ -24,6 +25,7 @@ from worker.solver.objectives import UNITS
 from worker.solver.phased_problem import PhasedProblem, build_phased_problem
 from worker.solver.problem import EntryProblem, build_problem
 from worker.solver.result import (
+    input_provenance,
     node_violations,
     phased_node_violations,
     phased_trajectory_columns,
@@ -231,6 +233,10 @@ def solve_problem(
     """
     start = time.perf_counter()
     method = problem.method.name
+    about_input: dict[str, Any] = {  # what every result says of its input, a solve or not
+        "provenance": input_provenance(problem),
+        "warnings": [w.model_dump() for w in plausibility_warnings(problem)],
+    }
     issues = check_support(problem)
     if issues:
         message = "; ".join(f"{i.field}: {i.message}" for i in issues)
@@ -240,6 +246,7 @@ def solve_problem(
                 "method": method,
                 "failure": {"code": "unsupported_by_method", "message": message},
                 "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
+                **about_input,
             }
         )
     # a method that flies phases gets the phased model (one phase when the document gives none)
@@ -266,6 +273,7 @@ def solve_problem(
                         "message": "cancelled during the global search for a start",
                     },
                     "timing": {"wall_s": 0.0, "conic_solve_s": 0.0, "iterations": 0},
+                    **about_input,
                 }
             )
         base = model
@@ -310,7 +318,8 @@ def solve_problem(
         "failure": failure,
         "method": method,
         "history": [r.as_dict() for r in history],
-        "provenance": provenance(base, problem.method),
+        "provenance": provenance(base, about_input["provenance"]),
+        "warnings": about_input["warnings"],
     }
     if phased:
         document["provenance"].update(dynamics="numpy", dynamics_note=PHASED_DYNAMICS_NOTE)
@@ -359,14 +368,16 @@ def solve_problem(
 
 def explain(document: dict[str, Any], options: Any) -> None:
     """Add to a failed result what was still moving when a budget ran out and what a user can
-    change (``failure.advice``); a cancelled one is left as it is."""
+    change (``failure.advice``), its implausible inputs first; a cancelled one is left as it
+    is."""
     failure = document.get("failure")
     if document["status"] in ("succeeded", "cancelled") or not failure:
         return
+    blame_input(failure, document.get("warnings") or [])
     if failure["code"] in BUDGET_CODES:
         note = stall_note(document["history"], options)
         if note:
             failure["message"] = f"{failure['message']}; {note}"
-    hints = advice(document, options)
+    hints = list(dict.fromkeys([*input_advice(document), *advice(document, options)]))
     if hints:
         failure["advice"] = hints

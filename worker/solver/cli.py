@@ -308,6 +308,10 @@ def _solve(args: argparse.Namespace, csv_table: CsvTable | None) -> int:
         for line in issue_lines(f"method {doc.method.name} cannot solve this problem", issues):
             print(line, file=sys.stderr)
         return 2
+    from app.schemas.plausibility import plausibility_warnings
+
+    for warning in plausibility_warnings(doc):  # legal, but likely a slip of units
+        print(f"warning: {warning.message}", file=sys.stderr)
 
     from worker.solver.api import solve_problem
 

@@ -192,3 +192,29 @@ def _zone_and_control_advice(verification: Mapping[str, Any], options: ScpRunOpt
                 f"{_finer_mesh(options)}"
             )
     return out
+
+
+START_CODES = frozenset({"initial_guess", "path_limits_infeasible"})
+"""Failures of a method that could not start: an implausible input is then the likely cause."""
+
+
+def input_advice(document: Mapping[str, Any]) -> list[str]:
+    """The result's implausible inputs (its plausibility warnings), to check before anything
+    else: a slip of units makes every other symptom follow from it."""
+    return [
+        f"check the input first: {warning['message']}"
+        for warning in document.get("warnings") or []
+        if isinstance(warning, Mapping) and warning.get("message")
+    ]
+
+
+def blame_input(failure: dict[str, Any], warnings: Sequence[Mapping[str, Any]]) -> None:
+    """A method that could not start from an implausible input says that, not what its own
+    start options would change (``give method.initial_bank_deg``): what happened is kept, the
+    implausible input named."""
+    if failure.get("code") not in START_CODES or not warnings:
+        return
+    what = str(failure.get("message", "")).split("; ")[0]
+    first = warnings[0].get("message", "")
+    more = f" (and {len(warnings) - 1} more implausible inputs)" if len(warnings) > 1 else ""
+    failure["message"] = f"{what}; the likely cause is an implausible input: {first}{more}"

@@ -6,12 +6,12 @@ from __future__ import annotations
 import platform
 import sys
 from datetime import UTC, datetime
-from importlib import metadata
 from typing import Any
 
 import numpy as np
 
-from app.schemas.methods import ScpRunOptions
+from app.schemas import ProblemDocument
+from app.schemas.fingerprint import problem_sha256
 from app.schemas.result import ResultDocument, json_ready
 from worker.solver.constraints.no_fly import zone_distance
 from worker.solver.models.bank_state_compiled import compiled_parameters
@@ -20,6 +20,7 @@ from worker.solver.phased_problem import PhasedProblem
 from worker.solver.problem import EntryProblem
 from worker.solver.scp.history import IterationRecord
 from worker.solver.scp.loop import VIRTUAL_CONTROL_TOL
+from worker.solver.software import library_versions, software
 from worker.solver.trajectory import TIME_STATE_NAMES, OptimizedTrajectory, PhasedTrajectory
 from worker.solver.units import COLUMN_UNITS
 from worker.solver.verification import (
@@ -35,8 +36,6 @@ from worker.solver.verification_phased import (
     phase_path_values,
     phased_columns,
 )
-
-PACKAGES = ("numpy", "scipy", "clarabel", "cvxpy", "pydantic", "entry-trajopt")
 
 
 def trajectory_columns(problem: EntryProblem, traj: OptimizedTrajectory) -> dict[str, Any]:
@@ -67,13 +66,6 @@ def trajectory_columns(problem: EntryProblem, traj: OptimizedTrajectory) -> dict
     return cols
 
 
-def _version(name: str) -> str | None:
-    try:
-        return metadata.version(name)
-    except metadata.PackageNotFoundError:
-        return None
-
-
 def dynamics_path(problem: EntryProblem) -> dict[str, str]:
     """Whether the problem's equations of motion have a compiled form; without one they run as
     numpy code, and the note says which models are the reason."""
@@ -90,16 +82,31 @@ def dynamics_path(problem: EntryProblem) -> dict[str, str]:
     }
 
 
-def provenance(problem: EntryProblem, options: ScpRunOptions) -> dict[str, Any]:
-    """Package versions, the method's ``options``, platform and the dynamics path: what is needed
-    to reproduce the result and to explain its time."""
+def input_provenance(document: ProblemDocument) -> dict[str, Any]:
+    """What any result says of its input and its software, a solve or not: the problem's
+    fingerprint and name, the method's options (defaults filled in), the job it started from,
+    the library versions, this project's version and revision, Python and the platform."""
+    guess = document.initial_guess
+    source = guess.from_job if guess is not None else None
     return {
         "created_at": datetime.now(UTC).isoformat(),
-        "packages": {name: _version(name) for name in PACKAGES},
+        "problem_name": document.name,
+        "problem_sha256": problem_sha256(document),
+        "method_options": document.method.model_dump(mode="json"),
+        **({"source_job": source} if source is not None else {}),
+        "packages": library_versions(),
+        "software": software(),
         "python": sys.version.split()[0],
         "platform": platform.platform(),
-        "method_options": options.model_dump(mode="json"),
-        "problem_name": problem.name,
+    }
+
+
+def provenance(problem: EntryProblem, about_input: dict[str, Any]) -> dict[str, Any]:
+    """``about_input`` (:func:`input_provenance`) and how the solve ran: the dynamics path and
+    the start; what is needed to reproduce the result and to explain its time."""
+    return {
+        **about_input,
+        "created_at": datetime.now(UTC).isoformat(),
         **dynamics_path(problem),
         **_guess_note(problem),
     }

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
+from app.schemas.base import FieldProblem, raise_problems
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 
 
@@ -51,10 +52,12 @@ class ChebScvxOptions(ScpRunOptions):
     name: Literal["cheb-scvx"] = Field("cheb-scvx", description="Method name.")
     nodes: int = Field(
         201,
-        ge=5,
+        ge=3,
         le=1000,
         description="CGL points of the flight (the intervals' degrees sum to nodes - 1); with "
-        "waypoints, shared among the legs in proportion to their lengths.",
+        "waypoints, shared among the legs in proportion to their lengths. Each interval has "
+        "degree 2 at least, so at least 2 x intervals + 1 (41 for the default 20 intervals; 3 "
+        "for one interval, the fewest the method runs with).",
     )
     intervals: int = Field(
         20,
@@ -118,3 +121,23 @@ class ChebScvxOptions(ScpRunOptions):
         description="Points of the states' interpolating polynomial sampled between "
         "neighbouring CGL points where the no-fly zones are also constrained.",
     )
+
+    @model_validator(mode="after")
+    def _degree_two(self) -> ChebScvxOptions:
+        """Every interval needs degree 2 at least: fewer points than that are refused rather
+        than raised to it behind the caller's back."""
+        fewest = 2 * self.intervals + 1
+        if self.nodes < fewest:
+            raise_problems(
+                "ChebScvxOptions",
+                [
+                    FieldProblem(
+                        ("nodes",),
+                        "too_few_nodes",
+                        f"{self.intervals} intervals of degree 2 at least need {fewest} points "
+                        f"or more (2 x intervals + 1); give nodes >= {fewest} or fewer intervals",
+                        self.nodes,
+                    )
+                ],
+            )
+        return self

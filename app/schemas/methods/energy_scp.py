@@ -47,7 +47,10 @@ class EnergyScpOptions(ScpRunOptions):
         121,
         ge=3,
         le=MAX_NODES,
-        description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}.",
+        description=f"Discretization nodes (grid points: N + 1 for N intervals), 3..{MAX_NODES}: "
+        "3 is the fewest the method iterates with (with 2 its first step leaves the physical "
+        "range); below about 20 the coarse energy grid often breaks down after some "
+        "iterations (diverged, numerical_error).",
     )
     max_iterations: int = Field(
         60,

@@ -10,6 +10,9 @@ from app.schemas.base import FieldProblem, raise_problems
 from app.schemas.limits import MAX_NODES
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 
+MIN_NODES = 9
+"""The fewest nodes foh-ptr runs with (docs/problem-contract.md, "Method": measured)."""
+
 
 class FohStopTolerance(BoundedOptions):
     """Convergence test of the time-domain SCP: every node moves less than these between
@@ -51,9 +54,12 @@ class FohPtrOptions(ScpRunOptions):
     name: Literal["foh-ptr"] = Field("foh-ptr", description="Method name.")
     nodes: int = Field(
         40,
-        ge=3,
+        ge=MIN_NODES,
         le=MAX_NODES,
-        description=f"Temporal nodes (N + 1 for N intervals), 3..{MAX_NODES}.",
+        description=f"Temporal nodes (N + 1 for N intervals), {MIN_NODES}..{MAX_NODES}. "
+        f"{MIN_NODES} is the fewest with which the method starts on its built-in flights: "
+        "with fewer, intervals of more than 200 s of a 1600 s flight, its constant-bank guess "
+        "(two RK4 steps per interval) blows up and the first subproblem breaks down.",
     )
     grid: Literal["adaptive", "uniform"] = Field(
         "adaptive",

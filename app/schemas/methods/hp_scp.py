@@ -51,7 +51,9 @@ class HpScpOptions(ScpRunOptions):
         ge=3,
         le=2000,
         description="Points of the initial mesh: intervals x degree + 1 (default 20 intervals "
-        "of degree 5; paper 003 starts from 10 intervals of 8 points).",
+        "of degree 5; paper 003 starts from 10 intervals of 8 points), so at least intervals "
+        "+ 1 (degree 1); 3 (one interval of degree 2) is the fewest the method iterates with "
+        "(with 2 its first step leaves the physical range).",
     )
     intervals: int = Field(
         20, ge=1, le=400, description="Intervals of the initial mesh; nodes - 1 must divide."
@@ -201,6 +203,20 @@ class HpScpOptions(ScpRunOptions):
 
     @model_validator(mode="after")
     def _mesh_fits(self) -> HpScpOptions:
+        if self.nodes - 1 < self.intervals:  # below degree 1: name the count that is short
+            raise_problems(
+                "HpScpOptions",
+                [
+                    FieldProblem(
+                        ("nodes",),
+                        "too_few_nodes",
+                        f"{self.intervals} intervals of degree 1 at least need "
+                        f"{self.intervals + 1} points or more (intervals + 1); give nodes >= "
+                        f"{self.intervals + 1} or fewer intervals",
+                        self.nodes,
+                    )
+                ],
+            )
         if (self.nodes - 1) % self.intervals != 0:
             raise_problems(
                 "HpScpOptions",

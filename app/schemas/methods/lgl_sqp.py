@@ -24,7 +24,8 @@ class LglSqpOptions(ScpRunOptions):
         ge=3,
         le=2001,
         description="Points of each phase: segments x degree + 1 (default 20 segments of "
-        "degree 4).",
+        "degree 4), so at least degree + 1 (one segment); 3 (one segment of degree 2, or two "
+        "of degree 1) is the fewest the method runs with.",
     )
     degree: int = Field(4, ge=1, le=12, description="LGL degree of every segment.")
     phase_nodes: list[int] | None = Field(
@@ -78,7 +79,8 @@ class LglSqpOptions(ScpRunOptions):
                 ("phase_nodes", i) if self.phase_nodes is not None else ("nodes",),
                 "mesh_shape",
                 f"{n} points do not make whole segments of degree {self.degree} "
-                f"(points - 1 must be a multiple of {self.degree})",
+                f"(points - 1 must be a multiple of {self.degree}, and at least "
+                f"{max(3, self.degree + 1)} points)",
                 n,
             )
             for i, n in enumerate(counts)
