@@ -157,10 +157,11 @@ def _outcome_from_result(result: dict[str, Any], attempt: _Attempt) -> Outcome:
     failure = result.get("failure") if isinstance(result.get("failure"), dict) else None
     if status == JobStatus.CANCELLED and attempt.deadline_hit and not attempt.stop_requested:
         status = JobStatus.TIMED_OUT.value
-        failure = {
-            "code": "time_limit",
-            "message": f"stopped at the job's time limit of {attempt.limits.solve_s:g} s",
-        }
+        message = f"stopped at the job's time limit of {attempt.limits.solve_s:g} s"
+        stopped = str((failure or {}).get("message") or "")
+        if stopped.startswith("stopped "):  # the solver's "stopped during ...": where it was
+            message += ", " + stopped.removeprefix("stopped ")
+        failure = {"code": "time_limit", "message": message}
         result["status"], result["failure"] = status, failure
     elif status == JobStatus.CANCELLED:
         failure = failure or {"code": "cancelled", "message": "cancelled on request"}

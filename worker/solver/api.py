@@ -130,6 +130,21 @@ def _broken_message(failure: dict[str, str] | None, where: list[str]) -> str:
     )
 
 
+NOT_VERIFIED = "the trajectory is the last iterate and was not verified"
+
+
+def _stopped(document: dict[str, Any], where: str) -> None:
+    """Turn ``document`` into a cancelled result that says ``where`` the stop came."""
+    _fail(document, "cancelled", f"stopped {where}; {NOT_VERIFIED}")
+    document["status"] = "cancelled"
+
+
+def stopped_in_optimization(iterations: int) -> str:
+    """Where a stop asked for during the optimization came, in the history's numbering
+    (``iterations`` records were complete)."""
+    return f"during the optimization, before iteration {iterations + 1}"
+
+
 def _judge(
     document: dict[str, Any],
     report: dict[str, Any] | None,
@@ -142,13 +157,7 @@ def _judge(
     converged and the propagated controls violate; a failed verification of a failed result
     is named in its message; non-finite verification numbers fail the result."""
     if report is None:
-        _fail(
-            document,
-            "cancelled",
-            "stopped during the verification; the trajectory is the last iterate and was not "
-            "verified",
-        )
-        document["status"] = "cancelled"
+        _stopped(document, "during the verification")
         return
     broken = non_finite_entries(report, "verification")
     if broken:
@@ -321,6 +330,11 @@ def solve_problem(
         broken = non_finite_entries({"trajectory": columns, "objective": document["objective"]})
         if broken:
             _fail(document, _broken_code(outcome.failure_code), _broken_message(failure, broken))
+        elif outcome.status == "cancelled":
+            # stopped during the optimization: the stop still holds, so nothing is verified
+            document["trajectory"] = columns
+            document["verification"] = None
+            _stopped(document, stopped_in_optimization(len(history)))
         else:
             document["trajectory"] = columns
             if on_phase is not None:
@@ -340,7 +354,8 @@ def solve_problem(
                 else []
             )
             _judge(document, report, violations, outcome.failure_message)
-    explain(document, problem.method)
+    last_record = outcome.last_record
+    explain(document, problem.method, last_record.as_dict() if last_record else None)
     document["timing"] = {
         "wall_s": wall,
         "conic_solve_s": outcome.conic_solve_s,
@@ -351,14 +366,17 @@ def solve_problem(
     return validated(document)
 
 
-def explain(document: dict[str, Any], options: Any) -> None:
+def explain(document: dict[str, Any], options: Any, last: dict[str, Any] | None = None) -> None:
     """Add to a failed result what was still moving when a budget ran out and what a user can
-    change (``failure.advice``); a cancelled one is left as it is."""
+    change (``failure.advice``); a cancelled one is left as it is. ``last``: the last iteration
+    of the run whose answer is reported (default: the history's last record; a run of several
+    starts reports one start's answer)."""
     failure = document.get("failure")
     if document["status"] in ("succeeded", "cancelled") or not failure:
         return
     if failure["code"] in BUDGET_CODES:
-        note = stall_note(document["history"], options)
+        history = document["history"]
+        note = stall_note(last or (history[-1] if history else None), options)
         if note:
             failure["message"] = f"{failure['message']}; {note}"
     hints = advice(document, options)
