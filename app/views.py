@@ -73,10 +73,12 @@ class ScenarioJobRequest(BaseModel):
 class Progress(BaseModel):
     """Live progress of a running job, written by the worker at each phase and SCP iteration."""
 
-    phase: Literal["compiling", "optimizing", "verifying"] | None = Field(
+    phase: Literal["compiling", "optimizing", "verifying", "finished"] | None = Field(
         None,
         description="What the attempt is doing: compiling the solver's kernels (once per "
-        "install), running SCP iterations, or verifying the answer by propagation.",
+        "install), running SCP iterations, or verifying the answer by propagation; "
+        '"finished" once the job has a terminal status (succeeded, failed, cancelled, '
+        "timed_out), whatever the attempt last did. None while queued with nothing to wait for.",
     )
     iteration: int | None = None
     cost: float | None = None

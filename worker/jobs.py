@@ -268,8 +268,9 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
         "error_message": outcome.error_message,
         "solve_s": outcome.solve_s,
     }
-    if last is not None:
-        values["progress"] = progress_of(last, attempt.elapsed())
+    elapsed = attempt.elapsed()
+    progress = progress_of(last, elapsed) if last is not None else {"iteration": 0}
+    values["progress"] = {**progress, "phase": "finished", "elapsed_s": round(elapsed, 6)}
     unless_cancel_requested = outcome.status != JobStatus.CANCELLED
     if (
         attempt.stored is not None
