@@ -107,8 +107,8 @@ class _Attempt:
             self.stored = len(history)
 
     def on_phase(self, phase: str) -> None:
-        """Store that the attempt entered ``phase`` (compiling, optimizing, verifying), keeping
-        the last iteration's figures, and wake the job's event streams."""
+        """Store that the attempt entered ``phase`` (loading, compiling, optimizing, verifying),
+        keeping the last iteration's figures, and wake the job's event streams."""
         last = progress_of(self.history[-1], self.elapsed()) if self.history else {"iteration": 0}
         progress = {**last, "phase": phase, "elapsed_s": round(self.elapsed(), 6)}
         self._write(
@@ -384,14 +384,14 @@ def execute_job(
 
 
 def _load_solver(attempt: _Attempt) -> None:
-    """Load the solver's compiled kernels if this process has not yet; the first load after an
-    install compiles them (about a minute), which the job's progress says (phase ``compiling``).
-    The job's time limit starts after it."""
+    """Load the solver's compiled kernels if this process has not yet: the job's progress says
+    ``loading`` (from numba's cache) or ``compiling`` (the first load after an install, which
+    takes ``worker.solver.FIRST_COMPILE``). The job's time limit starts after it."""
     from worker.solver import warmup
 
     if warmup.is_warm():
         return
-    attempt.on_phase("compiling")
+    attempt.on_phase("loading" if warmup.kernels_cached() else "compiling")
     try:
         seconds = warmup.warm_up()
     except attempt.passthrough:

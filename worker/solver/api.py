@@ -35,7 +35,7 @@ from worker.solver.scp.history import IterationRecord
 from worker.solver.trajectory import OptimizedTrajectory, PhasedTrajectory
 from worker.solver.verification import VerificationStoppedError, verify
 from worker.solver.verification_phased import verify_phased
-from worker.solver.warmup import warm_up
+from worker.solver.warmup import KernelWait, warm_up
 
 IterationCallback = Callable[[dict[str, Any]], None]
 StopCheck = Callable[[], bool]
@@ -224,16 +224,19 @@ def solve_problem(
     on_iteration: IterationCallback | None = None,
     should_stop: StopCheck | None = None,
     on_phase: PhaseCallback | None = None,
-    on_compiling: Callable[[], None] | None = None,
+    on_kernels: Callable[[KernelWait], None] | None = None,
 ) -> dict[str, Any]:
     """Solve ``problem`` with its selected method and return the JSON-ready result document.
 
     ``on_iteration`` receives each per-iteration history record as soon as it exists;
     ``should_stop`` is polled once per SCP iteration and every fraction of a second during the
     verification (a true answer ends the solve as ``cancelled`` with the history so far);
-    ``on_phase`` hears when optimization and verification start; ``on_compiling`` is called
-    (from a helper thread) when the method's compiled kernels are not in numba's cache and the
-    wait before the optimization is their compilation (once after an install). Solver failures
+    ``on_phase`` hears when optimization and verification start; ``on_kernels`` hears why the
+    optimization waits for the method's compiled kernels (``warmup.warm_up``): "compiling" when
+    numba's cache lacks them (once after an install), "loading" when a load from the cache is
+    slow. A stop during the optimization ends it before the next iteration and starts no
+    verification; the failure message says whether the optimization (before which iteration)
+    or the verification was stopped. Solver failures
     (infeasible, diverged, time limit, numerical trouble, failed verification) come back as a
     result with ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only
     programming errors raise.
@@ -288,7 +291,7 @@ def solve_problem(
         and compiled_parameters(base.forces, base.omega) is not None
     ):
         # loaded (or compiled) before the clock: wall_s is the optimization's own
-        warm_up(on_compiling)
+        warm_up(on_kernels)
     if on_phase is not None:
         on_phase("optimizing")
     scp_start = time.perf_counter()
