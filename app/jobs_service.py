@@ -98,13 +98,17 @@ def _warnings(job: Job) -> list[PlausibilityWarning]:
 
 
 def _progress(job: Job) -> Progress | None:
-    if not job.progress:
-        return None
-    try:
-        return Progress.model_validate(job.progress)
-    except ValidationError:  # an unexpected record shape must not hide the job
-        log.warning("job %s: unreadable progress %r", job.id, job.progress)
-        return None
+    """The stored progress; a terminal job's says ``finished`` (its last iteration's figures
+    kept), however the job ended (by its worker, a cancel while queued, the sweeper)."""
+    progress = None
+    if job.progress:
+        try:
+            progress = Progress.model_validate(job.progress)
+        except ValidationError:  # an unexpected record shape must not hide the job
+            log.warning("job %s: unreadable progress %r", job.id, job.progress)
+    if job.status in ACTIVE_STATUSES:
+        return progress
+    return (progress or Progress()).model_copy(update={"phase": "finished"})
 
 
 def check_idempotency_key(key: str | None) -> str | None:

@@ -165,6 +165,7 @@ def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None =
         )
     app.include_router(health.router)
     app.include_router(ui.router)
+    app.include_router(ui.root_router)
     install_openapi(app)
     if settings.cors_origin_list:
         app.add_middleware(

@@ -74,10 +74,14 @@ class ScenarioJobRequest(BaseModel):
 class Progress(BaseModel):
     """Live progress of a running job, written by the worker at each phase and SCP iteration."""
 
-    phase: Literal["compiling", "optimizing", "verifying"] | None = Field(
+    phase: Literal["loading", "compiling", "optimizing", "verifying", "finished"] | None = Field(
         None,
-        description="What the attempt is doing: compiling the solver's kernels (once per "
-        "install), running SCP iterations, or verifying the answer by propagation.",
+        description="What the attempt is doing: loading the solver's kernels from numba's "
+        "cache, compiling them (once after an install), running SCP iterations, or verifying "
+        'the answer by propagation; "finished" once the job has a terminal status (succeeded, '
+        "failed, cancelled, timed_out), whatever the attempt last did. A queued job waiting for "
+        "the embedded pool to load the solver says loading or compiling; otherwise None while "
+        "queued.",
     )
     iteration: int | None = None
     cost: float | None = None

@@ -109,8 +109,8 @@ class _Attempt:
             self.stored = len(history)
 
     def on_phase(self, phase: str) -> None:
-        """Store that the attempt entered ``phase`` (compiling, optimizing, verifying), keeping
-        the last iteration's figures, and wake the job's event streams."""
+        """Store that the attempt entered ``phase`` (loading, compiling, optimizing, verifying),
+        keeping the last iteration's figures, and wake the job's event streams."""
         last = progress_of(self.history[-1], self.elapsed()) if self.history else {"iteration": 0}
         progress = {**last, "phase": phase, "elapsed_s": round(self.elapsed(), 6)}
         self._write(
@@ -159,10 +159,11 @@ def _outcome_from_result(result: dict[str, Any], attempt: _Attempt) -> Outcome:
     failure = result.get("failure") if isinstance(result.get("failure"), dict) else None
     if status == JobStatus.CANCELLED and attempt.deadline_hit and not attempt.stop_requested:
         status = JobStatus.TIMED_OUT.value
-        failure = {
-            "code": "time_limit",
-            "message": f"stopped at the job's time limit of {attempt.limits.solve_s:g} s",
-        }
+        message = f"stopped at the job's time limit of {attempt.limits.solve_s:g} s"
+        stopped = str((failure or {}).get("message") or "")
+        if stopped.startswith("stopped "):  # the solver's "stopped during ...": where it was
+            message += ", " + stopped.removeprefix("stopped ")
+        failure = {"code": "time_limit", "message": message}
         result["status"], result["failure"] = status, failure
     elif status == JobStatus.CANCELLED:
         failure = failure or {"code": "cancelled", "message": "cancelled on request"}
@@ -269,8 +270,9 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
         "error_message": outcome.error_message,
         "solve_s": outcome.solve_s,
     }
-    if last is not None:
-        values["progress"] = progress_of(last, attempt.elapsed())
+    elapsed = attempt.elapsed()
+    progress = progress_of(last, elapsed) if last is not None else {"iteration": 0}
+    values["progress"] = {**progress, "phase": "finished", "elapsed_s": round(elapsed, 6)}
     unless_cancel_requested = outcome.status != JobStatus.CANCELLED
     if (
         attempt.stored is not None
@@ -413,14 +415,14 @@ def execute_job(
 
 
 def _load_solver(attempt: _Attempt) -> None:
-    """Load the solver's compiled kernels if this process has not yet; the first load after an
-    install compiles them (about a minute), which the job's progress says (phase ``compiling``).
-    The job's time limit starts after it."""
+    """Load the solver's compiled kernels if this process has not yet: the job's progress says
+    ``loading`` (from numba's cache) or ``compiling`` (the first load after an install, which
+    takes ``worker.solver.FIRST_COMPILE``). The job's time limit starts after it."""
     from worker.solver import warmup
 
     if warmup.is_warm():
         return
-    attempt.on_phase("compiling")
+    attempt.on_phase("loading" if warmup.kernels_cached() else "compiling")
     try:
         seconds = warmup.warm_up()
     except attempt.passthrough:

@@ -2,15 +2,17 @@
 
 Used when no broker is configured. The request returns at once; a spawned process does the
 CPU-bound solve. The pool loads the solver (compiling its kernels on the first start after an
-install) before it reports ready. At start-up, jobs whose process is known to be gone (a process
-of this host that no longer exists held their lease) go back to the queue, and queued jobs are
-dispatched; a job another live server or worker runs is never taken: if that process dies, its
-lease lapses and the sweeper re-queues it. A pool broken by a dying child is rebuilt the same way.
+install; its processes tell it which) before it reports ready. At start-up, jobs whose process
+is known to be gone (a process of this host that no longer exists held their lease) go back to
+the queue, and queued jobs are dispatched; a job another live server or worker runs is never
+taken: if that process dies, its lease lapses and the sweeper re-queues it. A pool broken by a
+dying child is rebuilt the same way.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import functools
 import gc
 import heapq
@@ -32,6 +34,7 @@ from app.storage import repository
 from app.storage.models import JobStatus
 from app.storage.session import get_database
 from worker.limits import TimeLimits
+from worker.solver import FIRST_COMPILE
 
 log = logging.getLogger(__name__)
 
@@ -39,10 +42,24 @@ PARENT_WATCH_INTERVAL_S = 1.0
 """How often a pool process checks that the server that started it is still alive."""
 STOP_JOIN_TIMEOUT_S = 10.0
 """How long shutdown waits for each killed pool process to be reaped."""
-WARMING_UP = (
-    "starting: loading the solver (its kernels are compiled on the first start after an "
-    "install, which takes about a minute)"
-)
+UNKNOWN, LOADING, COMPILING = 0, 1, 2
+"""What the pool's processes do before they take jobs (the shared ``kernels`` flag): not known
+yet, loading the solver's kernels from numba's cache, or compiling them (first after an
+install)."""
+WARMING_UP = {
+    UNKNOWN: "starting: loading the solver",
+    LOADING: "starting: loading the solver's kernels from numba's cache",
+    COMPILING: (
+        f"starting: compiling the solver's kernels (once after an install, {FIRST_COMPILE})"
+    ),
+}
+"""The readiness check's answer while the pool warms up, by the ``kernels`` flag."""
+WAIT_PHASE = {UNKNOWN: "loading", LOADING: "loading", COMPILING: "compiling"}
+"""The progress phase of a job queued while the pool warms up, by the ``kernels`` flag."""
+_kernels_flag: ctypes.c_int | None = None
+"""In a pool process: the pool's shared ``kernels`` flag (set by :func:`_init_child`): shared
+memory without a lock (no semaphore to release at shutdown); the processes all find the same
+cache, and a process that compiles ends the warm-up before another could report loading."""
 
 
 def holder_is_gone(holder: str) -> bool:
@@ -67,7 +84,9 @@ def _watch_parent(parent_pid: int) -> None:
             os._exit(1)
 
 
-def _init_child(parent_pid: int) -> None:
+def _init_child(parent_pid: int, kernels: ctypes.c_int | None = None) -> None:
+    global _kernels_flag
+    _kernels_flag = kernels
     # Ctrl+C, or a SIGTERM sent to the whole process group (a service manager stopping the
     # server), reaches these processes too; the server decides when they stop (it kills them
     # in its shutdown, and they exit by themselves if it dies).
@@ -90,8 +109,11 @@ def _warm_up() -> float:
     start = time.perf_counter()
     import worker.jobs
     import worker.solver.api  # noqa: F401
-    from worker.solver.warmup import warm_up
+    from worker.solver.warmup import kernels_cached, warm_up
 
+    if _kernels_flag is not None:
+        state = LOADING if kernels_cached() else COMPILING
+        _kernels_flag.value = max(_kernels_flag.value, state)
     warm_up()
     return time.perf_counter() - start
 
@@ -112,14 +134,17 @@ class LocalDispatcher:
         """Jobs not yet handed to the pool: a heap of (priority, arrival, job id)."""
         self._arrivals = itertools.count()
         self._warming: list[Future[float]] = []
+        self._kernels: ctypes.c_int | None = None
         self._closed = False
 
     def _new_executor(self) -> ProcessPoolExecutor:
+        context = multiprocessing.get_context("spawn")
+        self._kernels = context.RawValue(ctypes.c_int, UNKNOWN)
         executor = ProcessPoolExecutor(
             max_workers=self._settings.local_workers,
-            mp_context=multiprocessing.get_context("spawn"),
+            mp_context=context,
             initializer=_init_child,
-            initargs=(os.getpid(),),
+            initargs=(os.getpid(), self._kernels),
         )
         started = time.perf_counter()
         self._warming = [executor.submit(_warm_up) for _ in range(self._settings.local_workers)]
@@ -130,6 +155,9 @@ class LocalDispatcher:
         if future.cancelled():
             return
         error = future.exception()
+        if error is not None and self._closed:  # a shutdown (Ctrl+C) while the pool was loading
+            log.info("the job pool stopped before the solver was loaded")
+            return
         if error is not None:
             log.error("the solver could not be loaded in the job pool", exc_info=error)
             return
@@ -160,7 +188,8 @@ class LocalDispatcher:
     def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
         """Queue the job (limits are applied inside ``execute_job``): it goes to the pool when
         a process is free, lowest ``priority`` first, then oldest. While the pool still loads
-        the solver, the queued job's progress says so (phase ``compiling``)."""
+        the solver, the queued job's progress says so (phase ``compiling`` when it compiles
+        the kernels, else ``loading``)."""
         with self._lock:
             if self._executor is None or self._closed:
                 raise RuntimeError("the local job pool is not running")
@@ -168,9 +197,15 @@ class LocalDispatcher:
             warming = not any(f.done() for f in self._warming)
         self._feed()
         if warming:
+            phase = WAIT_PHASE[self._kernel_state()]
             database = get_database(self._settings.effective_database_url)
             with database.session() as session:
-                repository.mark_queued_progress(session, job_id, {"phase": "compiling"})
+                repository.mark_queued_progress(session, job_id, {"phase": phase})
+
+    def _kernel_state(self) -> int:
+        """What the pool's processes do before they take jobs (UNKNOWN, LOADING, COMPILING)."""
+        flag = self._kernels
+        return int(flag.value) if flag is not None else UNKNOWN
 
     def _feed(self) -> None:
         """Hand waiting jobs to the pool while it has a free process."""
@@ -225,7 +260,7 @@ class LocalDispatcher:
             if getattr(self._executor, "_broken", False):
                 return "local job pool broken (restarting)"
             if not any(f.done() for f in self._warming):
-                return WARMING_UP
+                return WARMING_UP[self._kernel_state()]
         return None
 
     def queue_depth(self) -> int | None:

@@ -1,4 +1,5 @@
-"""``/ui/``: the web pages (the caller's jobs, one job's page) and their script and style.
+"""``/ui/``: the web pages (the caller's jobs, one job's page) and their script and style; ``/``
+sends a browser to them.
 
 The pages are static files of ``app.ui``; everything they show comes from the ``/v1`` API,
 read by their script with the caller's key, so the pages themselves need no authentication.
@@ -10,10 +11,25 @@ from __future__ import annotations
 from functools import cache
 from importlib.resources import files
 
-from fastapi import APIRouter
-from fastapi.responses import RedirectResponse, Response
+from fastapi import APIRouter, Request
+from fastapi.responses import JSONResponse, RedirectResponse, Response
 
 router = APIRouter(prefix="/ui", include_in_schema=False)
+root_router = APIRouter(include_in_schema=False)
+"""``/``: a browser goes to the jobs page, an API client gets where things are."""
+
+ROOT_LINKS = {
+    "jobs_page": "/ui/",
+    "docs": "/docs",
+    "redoc": "/redoc",
+    "openapi": "/openapi.json",
+    "jobs": "/v1/jobs",
+    "scenarios": "/v1/scenarios",
+    "methods": "/v1/methods",
+    "health": "/healthz",
+    "ready": "/readyz",
+}
+"""What ``GET /`` lists for an API client (paths under the application's mount point)."""
 
 CONTENT_SECURITY_POLICY = "; ".join(
     [
@@ -78,3 +94,25 @@ def asset(name: str) -> Response:
     if name not in ASSETS:
         return Response(status_code=404)
     return Response(_file(name), media_type=ASSETS[name], headers={"Cache-Control": "no-cache"})
+
+
+def _wants_html(request: Request) -> bool:
+    """Whether the client asks for a page (a browser's Accept names text/html)."""
+    return "text/html" in request.headers.get("accept", "").lower()
+
+
+@root_router.get("/", response_model=None)
+def root(request: Request) -> Response:
+    """A browser (Accept: text/html) is sent to the jobs page (307 to ``/ui/``); any other
+    client gets 200 JSON: the service's name and version and where its API, docs and pages
+    are."""
+    headers = {"Vary": "Accept"}
+    if _wants_html(request):
+        return RedirectResponse("ui/", status_code=307, headers=headers)
+    prefix = str(request.scope.get("root_path", "")).rstrip("/")
+    body = {
+        "service": request.app.title,
+        "version": request.app.version,
+        "links": {name: f"{prefix}{path}" for name, path in ROOT_LINKS.items()},
+    }
+    return JSONResponse(body, headers=headers)

@@ -286,9 +286,7 @@ function showJob(job) {
   showStatus(job.status);
   document.getElementById("method").textContent = job.method;
   const progress = job.progress || {};
-  document.getElementById("phase").textContent = ACTIVE.has(job.status)
-    ? progress.phase || "waiting"
-    : "finished";
+  document.getElementById("phase").textContent = progress.phase || "waiting";
   document.getElementById("iteration").textContent = fmt(progress.iteration);
   document.getElementById("failure").textContent = job.error
     ? `${job.error.code}: ${job.error.message}`

@@ -1,4 +1,5 @@
-"""Headless Chromium for the page tests: load a page with no network but loopback, read the DOM.
+"""Headless Chromium for the page tests: load a page with no network but loopback, read the DOM
+(or drive it with Playwright, :class:`PageWatch` recording its errors and foreign requests).
 
 The browser runs as a plain subprocess (``--dump-dom``): it loads the page, lets its scripts run
 for a virtual time budget, prints the rendered DOM and exits. Every host name but 127.0.0.1
@@ -16,6 +17,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from tests.integration.harness import require
 
@@ -90,3 +92,29 @@ def render(url: str, budget_ms: int = 10_000, timeout_s: float = 120.0) -> Rende
         )
         assert done.returncode == 0, f"chromium exited {done.returncode}:\n{done.stderr[-3000:]}"
         return RenderedPage(dom=done.stdout, requested=_page_requests(net_log))
+
+
+class PageWatch:
+    """A Playwright page with every console error, page error and foreign request recorded."""
+
+    def __init__(self, page: Any, base_url: str) -> None:
+        self.page = page
+        self.errors: list[str] = []
+        self.foreign: list[str] = []
+        page.on(
+            "console",
+            lambda msg: self.errors.append(f"console: {msg.text}") if msg.type == "error" else None,
+        )
+        page.on("pageerror", lambda exc: self.errors.append(f"page error: {exc}"))
+        page.on(
+            "request",
+            lambda req: (
+                None
+                if req.url.startswith((f"{base_url}/", "blob:", "data:"))
+                else self.foreign.append(req.url)
+            ),
+        )
+
+    def clean(self) -> None:
+        assert self.errors == [], self.errors
+        assert self.foreign == [], self.foreign

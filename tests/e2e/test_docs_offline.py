@@ -2,7 +2,8 @@
 
 A real ``trajopt serve`` (embedded defaults) and headless Chromium: the pages must draw the
 operations of the OpenAPI document, which they can only do if their scripts came from this
-server, and must request nothing from any other host (fonts, images, scripts).
+server, and must request nothing from any other host (fonts, images, scripts), not even one
+their Content-Security-Policy would block (the browser logs that as a console error).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import re
 
 import pytest
 
-from tests.e2e.browser import render
+from tests.e2e.browser import PageWatch, render
 from tests.integration.harness import ApiServer
 
 pytestmark = pytest.mark.slow
@@ -38,3 +39,14 @@ def test_redoc_renders_every_operation_offline(embedded_server: ApiServer) -> No
     assert "ProblemDocument" in page.dom  # the body schema that app.openapi fills in
     assert f"{embedded_server.base_url}/openapi.json" in page.requested
     assert _foreign(page.requested, embedded_server) == []
+
+
+@pytest.mark.parametrize(("path", "drawn"), [("/redoc", "Submit a job"), ("/docs", "/v1/jobs")])
+def test_the_docs_pages_log_no_error_and_ask_no_other_host(
+    watch: PageWatch, embedded_server: ApiServer, path: str, drawn: str
+) -> None:
+    page = watch.page
+    page.goto(f"{embedded_server.base_url}{path}")
+    page.get_by_text(drawn).first.wait_for(state="attached")
+    page.wait_for_load_state("networkidle")
+    watch.clean()

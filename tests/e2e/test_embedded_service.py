@@ -92,6 +92,54 @@ def test_failure_and_cancellation(client: ServiceClient, scenario: str) -> None:
     assert client.http.get(f"/v1/jobs/{running['id']}/history").json()["iterations"]
 
 
+def test_a_finished_job_says_finished(client: ServiceClient, scenario: str) -> None:
+    """A terminal job's progress phase is ``finished`` (its last iteration's figures kept), in
+    the job view and in the stream's end event alike."""
+    job = client.submit({"scenario": scenario, "method": {"nodes": 41, "max_iterations": 2}})
+    events = list(client.events(job["id"]))
+    assert events[-1]["event"] == "end"
+    assert events[-1]["data"]["progress"]["phase"] == "finished"
+    done = client.job(job["id"])
+    assert done["status"] == "failed"
+    assert (done["progress"]["phase"], done["progress"]["iteration"]) == ("finished", 2)
+    listed = client.http.get("/v1/jobs", params={"limit": 5}).json()["items"]
+    assert next(j for j in listed if j["id"] == job["id"])["progress"]["phase"] == "finished"
+
+
+def test_a_cancel_during_the_optimization_says_where_it_stopped(
+    client: ServiceClient, scenario: str
+) -> None:
+    """A running job cancelled between SCP iterations: the failure says it stopped during the
+    optimization and before which iteration (the history's next), and no verification ran. A
+    job cancelled while it waited in the queue says finished too."""
+    running = client.submit(long_job(scenario))
+    client.wait_for(
+        running["id"], lambda j: _running(j) and j["progress"]["iteration"] >= 2, 60, "iteration 2"
+    )
+    queued = client.submit({"scenario": scenario})
+    assert client.http.delete(f"/v1/jobs/{queued['id']}").status_code == 200
+    assert client.job(queued["id"])["progress"] == {
+        "phase": "finished",
+        "iteration": None,
+        "cost": None,
+        "max_state_change": None,
+        "conic_status": None,
+        "elapsed_s": None,
+    }
+    assert client.http.delete(f"/v1/jobs/{running['id']}").status_code == 202
+    done = client.wait_finished(running["id"], timeout=60)
+    result = client.http.get(f"/v1/jobs/{running['id']}/result").json()
+    kept = len(result["history"])
+    expected = (
+        f"stopped during the optimization, before iteration {kept + 1}; the trajectory is the "
+        "last iterate and was not verified"
+    )
+    assert (done["status"], done["error"]["code"]) == ("cancelled", "cancelled")
+    assert done["error"]["message"] == result["failure"]["message"] == expected
+    assert result["verification"] is None and result["trajectory"] is not None
+    assert done["progress"]["phase"] == "finished"
+
+
 def test_cancel_during_the_verification_stops_it(client: ServiceClient, scenario: str) -> None:
     cancel_during_verification(client, scenario)
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from tests.e2e.browser import OFFLINE_FLAGS, chromium
+from tests.e2e.browser import PageWatch
 from tests.integration.harness import (
     ApiServer,
     ServiceClient,
@@ -32,50 +32,6 @@ ROWS_AND_COUNTER = """() => [
 ]"""
 """The table's rows and the iteration counter, read together in one turn of the page's event
 loop: several iterations can arrive in one chunk between two separate reads."""
-
-
-class PageWatch:
-    """A Playwright page with every console error, page error and foreign request recorded."""
-
-    def __init__(self, page: Any, base_url: str) -> None:
-        self.page = page
-        self.errors: list[str] = []
-        self.foreign: list[str] = []
-        page.on(
-            "console",
-            lambda msg: self.errors.append(f"console: {msg.text}") if msg.type == "error" else None,
-        )
-        page.on("pageerror", lambda exc: self.errors.append(f"page error: {exc}"))
-        page.on(
-            "request",
-            lambda req: (
-                None
-                if req.url.startswith((f"{base_url}/", "blob:", "data:"))
-                else self.foreign.append(req.url)
-            ),
-        )
-
-    def clean(self) -> None:
-        assert self.errors == [], self.errors
-        assert self.foreign == [], self.foreign
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    sync_api = pytest.importorskip("playwright.sync_api")
-    executable = chromium()
-    flags = [flag for flag in OFFLINE_FLAGS if flag != "--headless"]
-    with sync_api.sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=executable, args=flags)
-        yield launched
-        launched.close()
-
-
-@pytest.fixture
-def watch(browser: Any, embedded_server: ApiServer) -> Iterator[PageWatch]:
-    context = browser.new_context()
-    yield PageWatch(context.new_page(), embedded_server.base_url)
-    context.close()
 
 
 def test_a_finished_job_shows_plots_verification_and_links(
@@ -165,6 +121,29 @@ def test_a_page_opened_on_a_queued_job_sees_it_start(
         "() => document.querySelector('#status').textContent === 'cancelled'", timeout=60_000
     )
     watch.clean()
+
+
+def test_the_root_address_opens_the_jobs_page_in_a_browser(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    """``GET /``: a browser lands on the jobs page (a 307 to ``/ui/``); an API client gets 200
+    JSON naming where the API, the docs and the pages are, each of which answers."""
+    page = watch.page
+    page.goto(f"{embedded_server.base_url}/")
+    page.wait_for_selector("#jobs")
+    assert page.url == f"{embedded_server.base_url}/ui/"
+    watch.clean()
+    http = embedded_client.http
+    redirect = http.get("/", headers={"Accept": "text/html,*/*;q=0.8"}, follow_redirects=False)
+    assert (redirect.status_code, redirect.headers["location"]) == (307, "ui/")
+    answer = http.get("/", headers={"Accept": "application/json"})
+    assert answer.status_code == 200 and answer.headers["content-type"] == "application/json"
+    links = answer.json()["links"]
+    assert links["jobs_page"] == "/ui/" and links["openapi"] == "/openapi.json"
+    assert answer.json()["service"] == "trajopt"
+    assert {name: http.get(path).status_code for name, path in links.items()} == dict.fromkeys(
+        links, 200
+    )
 
 
 def test_the_list_links_each_of_the_callers_jobs(

@@ -3,12 +3,21 @@ the stall of a run out of budget, a limit out of reach, a mesh too coarse betwee
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
+import numpy as np
+import pytest
+
+from app.schemas import ProblemDocument
+from app.schemas.methods import LglSqpOptions
 from app.schemas.methods.energy_scp import EnergyScpOptions
 from app.schemas.methods.foh_ptr import FohPtrOptions
-from worker.solver.api import explain
+from worker.solver.api import explain, solve_problem
 from worker.solver.diagnosis import advice, stall_note
+from worker.solver.methods.lgl_sqp.method import over_limit, sqp_failure_lead
+from worker.solver.methods.lgl_sqp.sqp import SqpOutcome
+from worker.solver.scenarios import get_scenario
 
 FOH = FohPtrOptions(name="foh-ptr", grid="uniform", nodes=40, max_iterations=30)
 ENERGY = EnergyScpOptions(name="energy-scp", nodes=121)
@@ -32,7 +41,7 @@ def test_a_run_out_of_iterations_says_what_still_moved_and_what_to_raise() -> No
             "virtual_control_norm": 3e-3,
         },
     ]
-    note = stall_note(history, FOH)
+    note = stall_note(history[-1], FOH)
     assert note is not None
     # velocity 30 m/s is 6 x its 5 m/s tolerance, altitude 412 m 4.1 x its 100 m: farthest first
     assert note.startswith(
@@ -125,3 +134,60 @@ def test_a_scheduled_vehicles_unused_lift_is_named_with_its_weight() -> None:
     assert tips[0].startswith("the relaxed lift vector is not tight (|(u1, u2)|^2 falls short")
     assert "method.weight_unused_lift (it was 0.5)" in tips[0]
     assert not any("drag without its lift" in tip for tip in tips)
+
+
+@pytest.mark.slow
+def test_a_run_of_two_starts_counts_its_iterations_one_way() -> None:
+    """foh-ptr runs two starts of ``max_iterations`` each and reports the first when neither
+    converges: the message names that start and where its iterations are in the history, and
+    the stall note is its last step (not the other start's)."""
+    raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
+    raw["method"] = {**raw["method"], "max_iterations": 3}
+    result = solve_problem(ProblemDocument.model_validate(raw))
+    assert result["failure"]["code"] == "max_iterations"
+    assert [(s["start"], s["iterations"], s["chosen"]) for s in result["starts"]] == [
+        (1, 3, True),
+        (2, 3, False),
+    ]
+    assert result["timing"]["iterations"] == len(result["history"]) == 6
+    message = result["failure"]["message"]
+    assert message.startswith(
+        "start 1 of 2 (history iterations 1-3): not converged in 3 iterations; "
+        "the last step (iteration 3) still moved"
+    ), message
+    assert set(re.findall(r"iteration (\d+)\)", message)) == {"3"}
+
+
+def test_a_path_value_over_its_limit_reads_as_over() -> None:
+    assert over_limit(1.2e-6) == "0.00012 % over its limit"
+    assert over_limit(0.034) == "3.4 % over its limit"
+    assert over_limit(2.5) == "250 % over its limit"
+
+
+def _outcome(status: str, message: str | None = None) -> SqpOutcome:
+    return SqpOutcome(status=status, z=np.zeros(1), evaluation=None, message=message)  # type: ignore[arg-type]
+
+
+def test_an_sqp_message_counts_what_the_history_holds() -> None:
+    """The SQP's iterations and the global search's generations are both records of the
+    history (``timing.iterations``): the message counts the SQP's and says where they are."""
+    options = LglSqpOptions(name="lgl-sqp", max_iterations=300)
+    lead = sqp_failure_lead(_outcome("max_iterations"), options, 400, 100, 0)
+    assert lead == (
+        "not converged in 300 SQP iterations (history records 101-400; records 1-100 are the "
+        "GA search's generations)"
+    )
+    lead = sqp_failure_lead(_outcome("max_iterations"), options, 398, 100, 0)
+    assert lead.startswith("not converged in 300 SQP iterations (2 of them a failed QP")
+    options = LglSqpOptions(name="lgl-sqp", initial_guess="constant", time_limit_s=60)
+    lead = sqp_failure_lead(
+        _outcome("timed_out", "time limit 60 s reached after 9"), options, 50, 0, 12
+    )
+    assert lead == (
+        "time limit 60 s reached after 50 SQP iterations (history records 1-50, the last 12 on "
+        "the refined mesh)"
+    )
+    stalled = _outcome("infeasible", "the steps stalled at iteration 37 with conditions unmet")
+    assert sqp_failure_lead(stalled, options, 37, 0, 0).startswith(
+        "the steps stalled at iteration 37"
+    )

@@ -202,7 +202,17 @@ def test_the_printed_problem_fails_naming_the_unreachable_bottom_box() -> None:
         max_iterations=40,
         global_guess={"max_evaluations": 800, "seed": 1},
     )
-    message = _failed(document)["failure"]["message"]
+    result = _failed(document)
+    message = result["failure"]["message"]
+    # the search's generations and the SQP's iterations are all records of the history: the
+    # message counts the SQP's and says which records they are
+    total = result["timing"]["iterations"]
+    generations = sum(1 for r in result["history"] if r["extra"]["stage"] == "global_guess")
+    assert len(result["history"]) == total and 0 < generations < total
+    assert message.startswith(
+        f"not converged in 40 SQP iterations (history records {generations + 1}-{total}; "
+        f"records 1-{generations} are the GA search's generations)"
+    ), message
     # the box is 81 deg of arc away from every reachable bottom point: a bound of the
     # descent's latitude or longitude range is named with the miss
     assert "phase 'descent' ends with" in message

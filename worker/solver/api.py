@@ -37,7 +37,7 @@ from worker.solver.scp.history import IterationRecord
 from worker.solver.trajectory import OptimizedTrajectory, PhasedTrajectory
 from worker.solver.verification import VerificationStoppedError, verify
 from worker.solver.verification_phased import verify_phased
-from worker.solver.warmup import warm_up
+from worker.solver.warmup import KernelWait, warm_up
 
 IterationCallback = Callable[[dict[str, Any]], None]
 StopCheck = Callable[[], bool]
@@ -132,6 +132,21 @@ def _broken_message(failure: dict[str, str] | None, where: list[str]) -> str:
     )
 
 
+NOT_VERIFIED = "the trajectory is the last iterate and was not verified"
+
+
+def _stopped(document: dict[str, Any], where: str) -> None:
+    """Turn ``document`` into a cancelled result that says ``where`` the stop came."""
+    _fail(document, "cancelled", f"stopped {where}; {NOT_VERIFIED}")
+    document["status"] = "cancelled"
+
+
+def stopped_in_optimization(iterations: int) -> str:
+    """Where a stop asked for during the optimization came, in the history's numbering
+    (``iterations`` records were complete)."""
+    return f"during the optimization, before iteration {iterations + 1}"
+
+
 def _judge(
     document: dict[str, Any],
     report: dict[str, Any] | None,
@@ -144,13 +159,7 @@ def _judge(
     converged and the propagated controls violate; a failed verification of a failed result
     is named in its message; non-finite verification numbers fail the result."""
     if report is None:
-        _fail(
-            document,
-            "cancelled",
-            "stopped during the verification; the trajectory is the last iterate and was not "
-            "verified",
-        )
-        document["status"] = "cancelled"
+        _stopped(document, "during the verification")
         return
     broken = non_finite_entries(report, "verification")
     if broken:
@@ -217,16 +226,19 @@ def solve_problem(
     on_iteration: IterationCallback | None = None,
     should_stop: StopCheck | None = None,
     on_phase: PhaseCallback | None = None,
-    on_compiling: Callable[[], None] | None = None,
+    on_kernels: Callable[[KernelWait], None] | None = None,
 ) -> dict[str, Any]:
     """Solve ``problem`` with its selected method and return the JSON-ready result document.
 
     ``on_iteration`` receives each per-iteration history record as soon as it exists;
     ``should_stop`` is polled once per SCP iteration and every fraction of a second during the
     verification (a true answer ends the solve as ``cancelled`` with the history so far);
-    ``on_phase`` hears when optimization and verification start; ``on_compiling`` is called
-    (from a helper thread) when the method's compiled kernels are not in numba's cache and the
-    wait before the optimization is their compilation (once after an install). Solver failures
+    ``on_phase`` hears when optimization and verification start; ``on_kernels`` hears why the
+    optimization waits for the method's compiled kernels (``warmup.warm_up``): "compiling" when
+    numba's cache lacks them (once after an install), "loading" when a load from the cache is
+    slow. A stop during the optimization ends it before the next iteration and starts no
+    verification; the failure message says whether the optimization (before which iteration)
+    or the verification was stopped. Solver failures
     (infeasible, diverged, time limit, numerical trouble, failed verification) come back as a
     result with ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only
     programming errors raise.
@@ -293,7 +305,7 @@ def solve_problem(
         and compiled_parameters(base.forces, base.omega) is not None
     ):
         # loaded (or compiled) before the clock: wall_s is the optimization's own
-        warm_up(on_compiling)
+        warm_up(on_kernels)
     if on_phase is not None:
         on_phase("optimizing")
     scp_start = time.perf_counter()
@@ -336,6 +348,11 @@ def solve_problem(
         broken = non_finite_entries({"trajectory": columns, "objective": document["objective"]})
         if broken:
             _fail(document, _broken_code(outcome.failure_code), _broken_message(failure, broken))
+        elif outcome.status == "cancelled":
+            # stopped during the optimization: the stop still holds, so nothing is verified
+            document["trajectory"] = columns
+            document["verification"] = None
+            _stopped(document, stopped_in_optimization(len(history)))
         else:
             document["trajectory"] = columns
             if on_phase is not None:
@@ -355,7 +372,8 @@ def solve_problem(
                 else []
             )
             _judge(document, report, violations, outcome.failure_message)
-    explain(document, problem.method)
+    last_record = outcome.last_record
+    explain(document, problem.method, last_record.as_dict() if last_record else None)
     document["timing"] = {
         "wall_s": wall,
         "conic_solve_s": outcome.conic_solve_s,
@@ -366,16 +384,18 @@ def solve_problem(
     return validated(document)
 
 
-def explain(document: dict[str, Any], options: Any) -> None:
+def explain(document: dict[str, Any], options: Any, last: dict[str, Any] | None = None) -> None:
     """Add to a failed result what was still moving when a budget ran out and what a user can
     change (``failure.advice``), its implausible inputs first; a cancelled one is left as it
-    is."""
+    is. ``last``: the last iteration of the run whose answer is reported (default: the
+    history's last record; a run of several starts reports one start's answer)."""
     failure = document.get("failure")
     if document["status"] in ("succeeded", "cancelled") or not failure:
         return
     blame_input(failure, document.get("warnings") or [])
     if failure["code"] in BUDGET_CODES:
-        note = stall_note(document["history"], options)
+        history = document["history"]
+        note = stall_note(last or (history[-1] if history else None), options)
         if note:
             failure["message"] = f"{failure['message']}; {note}"
     hints = list(dict.fromkeys([*input_advice(document), *advice(document, options)]))

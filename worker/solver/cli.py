@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from worker.solver import FIRST_COMPILE
 from worker.solver.scenarios import (
     Scenario,
     UnknownScenarioError,
@@ -200,14 +201,17 @@ def scenario_table(scenarios: Sequence[Scenario]) -> list[str]:
     return lines
 
 
-def _compiling_notice() -> None:
-    """Say on stderr why the first solve after an install waits before its first iteration."""
-    print(
-        "compiling the solver's kernels: once after an install, about 20 s (python -m "
-        "worker.solver.warmup does it ahead of time)",
-        file=sys.stderr,
-        flush=True,
-    )
+def _kernels_notice(wait: str) -> None:
+    """Say on stderr why the solve waits before its first iteration: the first after an install
+    compiles the solver's kernels; a load from numba's cache is said only when it is slow."""
+    if wait == "compiling":
+        line = (
+            f"compiling the solver's kernels: once after an install, {FIRST_COMPILE} "
+            "(python -m worker.solver.warmup does it ahead of time)"
+        )
+    else:
+        line = "loading the solver's compiled kernels from numba's cache"
+    print(line, file=sys.stderr, flush=True)
 
 
 def _progress(record: dict[str, Any]) -> None:
@@ -316,7 +320,7 @@ def _solve(args: argparse.Namespace, csv_table: CsvTable | None) -> int:
     from worker.solver.api import solve_problem
 
     result = solve_problem(
-        doc, on_iteration=None if args.quiet else _progress, on_compiling=_compiling_notice
+        doc, on_iteration=None if args.quiet else _progress, on_kernels=_kernels_notice
     )
     code = 0 if result["status"] == "succeeded" else 1
     print(_summary(result), flush=True)

@@ -24,12 +24,13 @@ PATH_FIELDS = {
 BUDGET_CODES = frozenset({"max_iterations", "time_limit"})
 
 
-def stall_note(history: Sequence[Mapping[str, Any]], options: ScpRunOptions) -> str | None:
-    """What the last iteration still changed, against the stop tolerances (at most three
-    states, the farthest first), and an unspent virtual control; None without a history."""
-    if not history:
+def stall_note(last: Mapping[str, Any] | None, options: ScpRunOptions) -> str | None:
+    """What ``last``, the last iteration of the run whose answer is reported, still changed,
+    against the stop tolerances (at most three states, the farthest first), and an unspent
+    virtual control; None without an iteration. Its number is the history's (a run of several
+    starts numbers on from one start to the next)."""
+    if last is None:
         return None
-    last = history[-1]
     tolerances = getattr(options, "stop_tolerance", None)
     changes = last.get("max_state_change") or {}
     over: list[tuple[float, str]] = []

@@ -3,15 +3,22 @@
 It sits above every module that owns kernels (the model sweeps, the scalar integrator's rates,
 the path rows, the FOH Hessian) and asks each to compile on a tiny case; ``python -m
 worker.solver.warmup`` fills numba's on-disk cache (CI, the Docker image, the first start).
+Whether the cache already holds them is read from numba's cache index, so a caller can say
+"compiling" only when it compiles.
 """
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
+from numba.core.caching import NullCache
+from numba.core.dispatcher import Dispatcher
+from numba.core.registry import cpu_target
 
 from worker.solver.constraints import path_compiled
 from worker.solver.models import bank_state_sweeps, flown_rates, scalar_rates
@@ -19,8 +26,11 @@ from worker.solver.transcription import energy_defect_compiled, foh_hessian
 
 _warmed = False
 
+KernelWait = Literal["compiling", "loading"]
+"""What a warm-up does: compile the kernels (numba's cache lacks them) or load them from it."""
+
 NOTICE_AFTER_S = 1.0
-"""Loading from numba's cache takes well under this; a warm-up still running then is compiling."""
+"""A load from numba's cache still running after this is worth a word (a machine under load)."""
 
 
 def is_warm() -> bool:
@@ -28,22 +38,58 @@ def is_warm() -> bool:
     return _warmed
 
 
-def warm_up(notice: Callable[[], None] | None = None) -> float:
+def _kernels() -> list[Dispatcher]:
+    """Every cached numba kernel of the solver's modules imported so far (this module imports
+    all that own one)."""
+    found: dict[int, Dispatcher] = {}
+    for name, module in list(sys.modules.items()):
+        if name.startswith("worker.solver.") and module is not None:
+            for value in vars(module).values():
+                cache = getattr(value, "_cache", None) if isinstance(value, Dispatcher) else None
+                if cache is not None and not isinstance(cache, NullCache):
+                    found[id(value)] = value
+    return list(found.values())
+
+
+def _in_cache(kernel: Dispatcher, target: tuple[object, ...]) -> bool:
+    """Whether numba's on-disk cache index of ``kernel`` is fresh (its source unchanged) and holds
+    code compiled for this processor."""
+    try:
+        index = getattr(kernel, "_cache")._cache_file._load_index()  # noqa: B009 (numba's own)
+    except Exception:  # an unreadable index is recompiled by numba: say so
+        return False
+    return any(isinstance(key, tuple) and key[1] == target for key in index)
+
+
+def kernels_cached() -> bool:
+    """Whether every kernel loads from numba's on-disk cache (no compilation needed): its index
+    exists, matches the kernel's source and holds this processor's code. Reads the index files
+    only (a few milliseconds)."""
+    target = cpu_target.target_context.codegen().magic_tuple()
+    kernels = _kernels()
+    return bool(kernels) and all(_in_cache(kernel, target) for kernel in kernels)
+
+
+def warm_up(notice: Callable[[KernelWait], None] | None = None) -> float:
     """Compile every kernel (or load it from numba's on-disk cache) on a tiny case; seconds taken.
 
-    The first compilation on a machine takes about 20 s; afterwards loading takes well under one.
-    Worker processes call this before taking jobs, so a job's time limit never pays for it; once
-    the kernels are loaded in this process it returns at once. ``notice`` is called (from a
-    helper thread) if the warm-up is still running after ``NOTICE_AFTER_S``: it is compiling, and
-    a caller can say why it waits.
+    The first compilation on a machine takes ``worker.solver.FIRST_COMPILE``; afterwards loading
+    takes well under a second. Worker processes call this before taking jobs, so a job's time
+    limit never pays for it; once the kernels are loaded in this process it returns at once.
+    ``notice`` hears why the caller waits: ``"compiling"`` at once when numba's cache lacks the
+    kernels, ``"loading"`` (from a helper thread) when a load from the cache is still running
+    after NOTICE_AFTER_S.
     """
     if _warmed:
         return 0.0
     timer = None
     if notice is not None:
-        timer = threading.Timer(NOTICE_AFTER_S, notice)
-        timer.daemon = True
-        timer.start()
+        if kernels_cached():
+            timer = threading.Timer(NOTICE_AFTER_S, notice, args=("loading",))
+            timer.daemon = True
+            timer.start()
+        else:
+            notice("compiling")
     try:
         return _load_kernels()
     finally:
@@ -67,5 +113,11 @@ def _load_kernels() -> float:
     return time.perf_counter() - start
 
 
+def main() -> None:
+    """``python -m worker.solver.warmup``: fill numba's cache, saying whether it compiled."""
+    done = "loaded from numba's cache" if kernels_cached() else "compiled into numba's cache"
+    print(f"solver kernels {done} in {warm_up():.1f} s", flush=True)
+
+
 if __name__ == "__main__":
-    print(f"compiled kernels ready in {warm_up():.1f} s")
+    main()

@@ -103,10 +103,12 @@ def run_method(
     hooks: RunHooks,
     *,
     clock_start: float | None = None,
+    offset: int = 0,
 ) -> MethodResult:
     """Build a method (its set-up counts against the time limit) and run it on the shared driver
     with the budgets and conic backend of its options; ``clock_start``: when the time limit's
-    clock started (default: now)."""
+    clock started (default: now); ``offset``: iterations of the history before this run (its
+    messages name iterations in the history's numbering)."""
     start = time.perf_counter() if clock_start is None else clock_start
     method = build()
     backend = hooks.get("backend") or make_backend(
@@ -120,6 +122,7 @@ def run_method(
         on_iteration=hooks.get("on_iteration"),
         should_stop=hooks.get("should_stop"),
         start=start,
+        offset=offset,
     )
     ref = outcome.reference
     return MethodResult(
@@ -148,7 +151,9 @@ def run_starts(
     reported). The time limit covers all starts and ``max_iterations`` applies to each; the
     history holds every start's iterations numbered on from one start to the next, each record
     tagged with its start (``extra.start``, 1-based) and that start's ``labels`` entry. A start
-    that is cancelled or runs out of time ends the run.
+    that is cancelled or runs out of time ends the run, and reports it when no start converged.
+    The failure message of a run of several starts names the start it is about and where that
+    start's iterations are in the history.
     """
     clock = time.perf_counter()
     sink = hooks.get("on_iteration")
@@ -176,7 +181,7 @@ def run_starts(
                 sink(streamed[-1])
 
         run_hooks: RunHooks = {**hooks, "on_iteration": forward}
-        result = run_method(build, options, run_hooks, clock_start=clock)
+        result = run_method(build, options, run_hooks, clock_start=clock, offset=offset)
         # the driver streams every record of its history, in order, and a diverging one that
         # it does not keep: the streamed records are the history, that one kept with its start
         result.history = seen
@@ -185,8 +190,12 @@ def run_starts(
         if result.status in ("cancelled", "timed_out"):
             break
     converged = [r for r in results if r.status == "converged"]
-    chosen = min(converged, key=cost) if converged else results[0]
+    stopped = results[-1].status in ("cancelled", "timed_out")
+    chosen = min(converged, key=cost) if converged else results[-1 if stopped else 0]
     history = [record for r in results for record in r.history]
+    message = chosen.failure_message
+    if message and len(builds) > 1:
+        message = f"{start_label(results.index(chosen), len(builds), chosen.history)}: {message}"
     summaries = [
         {
             **labels[i],
@@ -204,7 +213,18 @@ def run_starts(
         conic_solve_s=sum(r.conic_solve_s for r in results),
         starts=summaries,
         final_record=chosen.history[-1] if chosen.history else None,
+        failure_message=message,
     )
+
+
+def start_label(index: int, starts: int, history: Sequence[IterationRecord]) -> str:
+    """Which start of a multi-start run a message is about (``index`` 0-based), and where its
+    iterations are in the run's history."""
+    if not history:
+        return f"start {index + 1} of {starts} (no iteration)"
+    first, last = history[0].iteration, history[-1].iteration
+    where = f"history iteration {first}" if first == last else f"history iterations {first}-{last}"
+    return f"start {index + 1} of {starts} ({where})"
 
 
 class Runner(Generic[Options]):

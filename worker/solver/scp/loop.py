@@ -175,10 +175,13 @@ def run_scp(
     on_iteration: IterationSink | None = None,
     should_stop: StopCheck | None = None,
     start: float | None = None,
+    offset: int = 0,
 ) -> ScpOutcome[Ref]:
     """Run ``method`` until it converges, fails, is stopped or runs out of its budget.
 
-    ``start`` is when the clock of ``budget.time_limit_s`` started (default: now).
+    ``start`` is when the clock of ``budget.time_limit_s`` started (default: now); ``offset``:
+    iterations of the history before this run (a later start of a multi-start run), by which
+    the iterations its messages name are shifted into the history's numbering.
     """
     t0 = time.perf_counter() if start is None else start
     deadline = t0 + budget.time_limit_s
@@ -205,7 +208,7 @@ def run_scp(
     for it in range(1, budget.max_iterations + 1):
         it_start = time.perf_counter()
         if should_stop is not None and should_stop():
-            return outcome("cancelled", "cancelled", f"cancelled before iteration {it}")
+            return outcome("cancelled", "cancelled", f"cancelled before iteration {offset + it}")
         remaining = deadline - it_start
         if remaining <= 0:
             return outcome(
@@ -221,8 +224,8 @@ def run_scp(
             return outcome(
                 "failed",
                 "numerical_error",
-                f"iteration {it}: the subproblem about the reference has non-finite {broken} "
-                "(the linearization broke down)",
+                f"iteration {offset + it}: the subproblem about the reference has non-finite "
+                f"{broken} (the linearization broke down)",
             )
         limit = conic_limit(remaining, budget.conic_time_limit_s)
         solution = method.solve(problem, conic, limit, deadline)
@@ -231,7 +234,7 @@ def run_scp(
             return outcome(
                 "timed_out" if code == "time_limit" else "failed",
                 code,
-                f"iteration {it}: convex subproblem {solution.status.value} "
+                f"iteration {offset + it}: convex subproblem {solution.status.value} "
                 f"({solution.solver}: {solution.raw_status})",
             )
         proposal = method.propose(reference, linearization, solution, it)

@@ -22,7 +22,7 @@ from worker.solver.global_search import SearchBudget, search_seconds
 from worker.solver.methods.base import MethodResult
 from worker.solver.methods.lgl_sqp.guess import Guess, global_guess, guess_on_mesh
 from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
-from worker.solver.methods.lgl_sqp.sqp import SqpIteration, SqpSettings, solve_sqp
+from worker.solver.methods.lgl_sqp.sqp import SqpIteration, SqpOutcome, SqpSettings, solve_sqp
 from worker.solver.phase_search import Parameterization, constant_params
 from worker.solver.phased_problem import PhasedProblem
 from worker.solver.scp.history import IterationRecord
@@ -159,6 +159,41 @@ def _to_si(nlp: PhasedNlp, i: int, value: float) -> float:
     return math.degrees(value)
 
 
+def over_limit(excess: float) -> str:
+    """A path value ``excess`` (a share of the limit) above its limit, in digits that show it
+    is over: 1.2e-06 reads "0.00012 % over its limit", not "1.0000 of its limit"."""
+    percent = 100.0 * excess
+    shown = f"{percent:.0f}" if percent >= 100.0 else f"{percent:.2g}"
+    return f"{shown} % over its limit"
+
+
+def sqp_failure_lead(
+    out: SqpOutcome, options: LglSqpOptions, history: int, generations: int, refined: int
+) -> str:
+    """How an SQP that did not converge ended, its iterations counted as the history's records
+    are (``history`` records in all, the first ``generations`` of them the global search's, the
+    last ``refined`` on the refined mesh), so the message and ``timing.iterations`` agree."""
+    sqp = history - generations
+    if out.status == "max_iterations":
+        lead = f"not converged in {options.max_iterations} SQP iterations"
+        if sqp < options.max_iterations:
+            failed = options.max_iterations - sqp
+            lead += f" ({failed} of them a failed QP, which leaves no record)"
+    elif out.status == "timed_out":
+        lead = f"time limit {options.time_limit_s:g} s reached after {sqp} SQP iterations"
+    elif out.status == "cancelled":
+        lead = f"cancelled after {sqp} SQP iterations"
+    else:
+        lead = out.message or f"the SQP ended {out.status} after {sqp} iterations"
+    where = [f"history records {generations + 1}-{history}" if sqp else "no SQP record"]
+    if refined:
+        where[0] += f", the last {refined} on the refined mesh"
+    if generations:
+        algorithm = options.global_guess.algorithm.upper()
+        where.append(f"records 1-{generations} are the {algorithm} search's generations")
+    return f"{lead} ({'; '.join(where)})"
+
+
 def unmet_conditions(nlp: PhasedNlp, z: Array) -> list[str]:
     """The phase end conditions and path limits the point ``z`` misses, worst first, in SI."""
     found: list[tuple[float, str]] = []
@@ -196,8 +231,8 @@ def unmet_conditions(nlp: PhasedNlp, z: Array) -> list[str]:
             found.append(
                 (
                     ev.ineq[k] * 1e4,
-                    f"phase {nlp.problem.phases[p].name!r}: {name} at {1 + ev.ineq[k]:.4f} of "
-                    f"its limit at point {point}",
+                    f"phase {nlp.problem.phases[p].name!r}: {name} {over_limit(ev.ineq[k])} at "
+                    f"point {point}",
                 )
             )
     dyn = float(np.max(np.abs(ev.eq[[k != "end" for k in nlp.eq_info.kind]]), initial=0.0))
@@ -366,9 +401,12 @@ def run(
     )
     backend = make_backend(options.conic_backend, fallback=options.fallback_solver)
     z0 = nlp.pack(guess.states, guess.controls, guess.durations)
+    generations = len(history)
     out = solve_sqp(
-        nlp, z0, settings, backend, on_iteration=on_sqp, should_stop=should_stop, clock_start=start
-    )
+        nlp, z0, settings, backend, on_iteration=on_sqp, should_stop=should_stop,
+        clock_start=start, offset=generations,
+    )  # fmt: skip
+    refined_records = 0
     extra["sqp"] = {
         "status": out.status,
         "iterations": len(out.iterations),
@@ -384,6 +422,7 @@ def run(
         second = solve_sqp(
             refined, _on_mesh(nlp, refined, out.z), replace(settings, max_iterations=budget),
             backend, on_iteration=on_sqp, should_stop=should_stop, clock_start=start,
+            offset=stage.offset,
         )  # fmt: skip
         second.qp_solve_s += out.qp_solve_s
         kept = second.status not in REFINEMENT_FALLBACK
@@ -395,6 +434,7 @@ def run(
         }
         if kept:
             out, nlp = second, refined
+            refined_records = len(history) - stage.offset
         else:
             out.qp_solve_s = second.qp_solve_s
     status: Any = out.status
@@ -409,7 +449,7 @@ def run(
         code = out.status
     if status != "converged":
         unmet = unmet_conditions(nlp, out.z)
-        lead = out.message or f"not converged after {len(out.iterations)} SQP iterations"
+        lead = sqp_failure_lead(out, options, len(history), generations, refined_records)
         tail = "; unmet: " + "; ".join(unmet[:UNMET_LIMIT]) if unmet else ""
         message = lead + tail
     return MethodResult(

@@ -169,8 +169,11 @@ def solve_sqp(
     on_iteration: Callable[[SqpIteration, Evaluation], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     clock_start: float | None = None,
+    offset: int = 0,
 ) -> SqpOutcome:
-    """Run the SQP from ``z0`` (clipped into the bounds)."""
+    """Run the SQP from ``z0`` (clipped into the bounds); ``offset``: records of the history
+    before this SQP, by which the iterations its messages name are shifted into the history's
+    numbering."""
     start = time.perf_counter() if clock_start is None else clock_start
     z = np.clip(z0, nlp.lower, nlp.upper)
     ev = nlp.evaluate(z)
@@ -220,7 +223,7 @@ def solve_sqp(
             trust *= 0.25
             if trust < TRUST_MIN:
                 out.status = "failed"
-                out.message = f"the QP failed at iteration {it} ({sol.raw_status})"
+                out.message = f"the QP failed at iteration {offset + it} ({sol.raw_status})"
                 break
             continue
         x = sol.x
@@ -332,7 +335,7 @@ def solve_sqp(
         stalled = stalled + 1 if small and max_viol > settings.feasibility_tolerance else 0
         if stalled >= 3 and rho >= PENALTY_MAX:
             out.status = "infeasible"
-            out.message = f"the steps stalled at iteration {it} with conditions unmet"
+            out.message = f"the steps stalled at iteration {offset + it} with conditions unmet"
             break
     out.z, out.evaluation = z, ev
     return out
