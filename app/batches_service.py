@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import json
 import logging
 from collections.abc import Callable
@@ -33,7 +34,7 @@ from app.jobs_service import (
     resolve_initial_guess,
 )
 from app.ratelimit import Quota, Submitter
-from app.report.batch import render_summary_plot, summary_csv, summary_row
+from app.report.batch import summary_csv, summary_row
 from app.schemas import FieldIssue, issues_from_validation_error
 from app.schemas.batch import BatchRequest
 from app.settings import Settings
@@ -46,6 +47,10 @@ from app.views import BatchLinks, BatchPage, BatchSummary, BatchView
 from worker.limits import job_time_limits
 
 log = logging.getLogger(__name__)
+
+GroundTrack = tuple[list[float], list[float]]
+SummaryPlotInputs = tuple[str, list[dict[str, Any]], list[str], list[GroundTrack]]
+"""A batch plot's kind, summary rows, parameter paths and flown ground tracks."""
 
 
 def batch_location(batch_id: str) -> str:
@@ -366,10 +371,21 @@ def summary_table(database: Database, owner: str, batch_id: str) -> str:
     return summary_csv(table.rows, table.parameters)
 
 
-def summary_plot(database: Database, owner: str, batch_id: str, fmt: str) -> bytes:
-    """The batch's plot (PNG or SVG); a footprint's with each child's flown ground track."""
+def plot_state(database: Database, owner: str, batch_id: str) -> str:
+    """A digest of what the batch's plot depends on (its children's statuses, and when each
+    finished one last changed): the plot kept under it is rendered again once a child moves."""
+    with database.reader() as session:
+        if repository.get_batch(session, batch_id, owner) is None:
+            raise not_found("batch", batch_id)
+        state = repository.batch_children_state(session, batch_id, owner)
+    return hashlib.sha256(repr(state).encode()).hexdigest()
+
+
+def plot_inputs(database: Database, owner: str, batch_id: str) -> SummaryPlotInputs:
+    """What :func:`app.report.batch.render_summary_plot` draws the batch's plot from (all but
+    the format); a footprint's with each child's flown ground track."""
     table = summary(database, owner, batch_id)
-    tracks: list[tuple[list[float], list[float]]] = []
+    tracks: list[GroundTrack] = []
     if table.batch.kind == "footprint":
         with database.reader() as session:
             children = repository.batch_children(session, batch_id, owner, repository.TRACK_PARTS)
@@ -377,4 +393,4 @@ def summary_plot(database: Database, owner: str, batch_id: str, fmt: str) -> byt
                 flown = ((child.result or {}).get("verification") or {}).get("propagated") or {}
                 if child.status == "succeeded" and flown.get("longitude_deg"):
                     tracks.append((flown["longitude_deg"], flown["latitude_deg"]))
-    return render_summary_plot(table.batch.kind, table.rows, table.parameters, fmt, tracks)
+    return table.batch.kind, table.rows, table.parameters, tracks

@@ -9,15 +9,22 @@
         result = client.result(job["id"])
 
 Every 4xx/5xx answer raises an :class:`ApiError` subclass carrying the service's error code,
-message, field and (422) the list of field issues. Requests the service refuses for a while
-(503 queue or database unavailable, 429 rate limit or active-job cap) are retried after the
-``Retry-After`` it sends, up to ``max_retries`` times and ``max_retry_wait_s`` in all; a
-submission carries an ``Idempotency-Key`` (made here unless given), so a retried submission
-never makes a second job. It needs only ``httpx``, not the service's own code.
+message, field and (422) the list of field issues. What may pass is retried: a connection that
+fails (refused, reset, cut before the answer, an answer that does not come within
+``timeout_s``) and an answer that means "not now" (429 rate limit or active-job cap, 502, 503
+queue or database unavailable, 504), after the ``Retry-After`` the service sends or else 0.5,
+1, 2, 4, 8 s, up to ``max_retries`` times (5) and ``max_retry_wait_s`` (120 s) of waiting in all;
+then the refusal's :class:`ApiError`, or :class:`ServiceUnreachableError` when no answer came.
+A submission carries an ``Idempotency-Key`` (made here unless given) that its retries repeat,
+so a submission whose answer was lost makes one job, not two. :meth:`TrajoptClient.wait`
+follows the event stream and, when the stream is refused (429 ``too_many_streams``) or cut (an
+API restart), polls the job and opens the stream again where it left off. It needs only
+``httpx``, not the service's own code.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 import uuid
@@ -30,8 +37,27 @@ import httpx
 TERMINAL = frozenset({"succeeded", "failed", "cancelled", "timed_out"})
 """Job statuses that do not change any more."""
 
-RETRIED_STATUSES = frozenset({429, 503})
-"""Answers that mean "not now": retried after their Retry-After."""
+RETRIED_STATUSES = frozenset({429, 502, 503, 504})
+"""Answers that mean "not now": retried after their Retry-After (or a back-off)."""
+
+RETRIED_ERRORS: tuple[type[Exception], ...] = (
+    httpx.ConnectError,
+    httpx.ConnectTimeout,
+    httpx.ReadTimeout,
+    httpx.WriteTimeout,
+    httpx.PoolTimeout,
+    httpx.ReadError,
+    httpx.WriteError,
+    httpx.RemoteProtocolError,
+)
+"""Failures of a connection that a new try may not meet: refused, reset, cut before the answer
+(a restarting API, a proxy), no answer in time."""
+
+STREAM_CUTS: tuple[type[Exception], ...] = tuple(
+    kind for kind in RETRIED_ERRORS if kind is not httpx.ReadTimeout
+)
+"""The failures after which an event stream is opened again (a stream silent for its
+``timeout_s`` ends as the caller asked)."""
 
 
 class ApiError(Exception):
@@ -86,6 +112,19 @@ class UnavailableError(ApiError):
     """503 after the retries: the queue or the database is unreachable."""
 
 
+class ServiceUnreachableError(ConnectionError):
+    """No answer from the service after the retries: ``attempts`` tries over ``waited_s``
+    seconds of waiting; the last connection failure is the ``__cause__``."""
+
+    def __init__(self, base_url: str, attempts: int, waited_s: float, last: Exception) -> None:
+        super().__init__(
+            f"cannot reach {base_url} after {attempts} tries over {waited_s:.0f} s: "
+            f"{type(last).__name__}: {last}"
+        )
+        self.attempts = attempts
+        self.waited_s = waited_s
+
+
 class JobTimeoutError(TimeoutError):
     """:meth:`TrajoptClient.wait` ran out of time; ``job`` is the job as last seen."""
 
@@ -136,12 +175,19 @@ def error_from(response: httpx.Response) -> ApiError:
 def parse_events(lines: Iterator[str]) -> Iterator[tuple[str, Any]]:
     """(event, data) of each server-sent event in ``lines`` (text lines without their ends);
     comments (pings) are skipped, data is decoded as JSON."""
-    event, data = "message", list[str]()
+    for event, data, _ in parse_event_records(lines):
+        yield event, data
+
+
+def parse_event_records(lines: Iterator[str]) -> Iterator[tuple[str, Any, str | None]]:
+    """(event, data, id) of each server-sent event in ``lines``, as :func:`parse_events`; id is
+    the event's ``id:`` field (None without one)."""
+    event, data, ident = "message", list[str](), None
     for line in lines:
         if line == "":
             if data:
-                yield event, json.loads("\n".join(data))
-            event, data = "message", []
+                yield event, json.loads("\n".join(data)), ident
+            event, data, ident = "message", [], None
             continue
         if line.startswith(":"):
             continue
@@ -151,8 +197,30 @@ def parse_events(lines: Iterator[str]) -> Iterator[tuple[str, Any]]:
             event = value
         elif field == "data":
             data.append(value)
+        elif field == "id":
+            ident = value
     if data:
-        yield event, json.loads("\n".join(data))
+        yield event, json.loads("\n".join(data)), ident
+
+
+class RetryBudget:
+    """The waits of one operation's retries: the refusal's Retry-After, else 0.5, 1, 2, 4, ...
+    s; at most ``max_retries`` of them and ``max_wait_s`` in all."""
+
+    def __init__(self, max_retries: int, max_wait_s: float) -> None:
+        self.max_retries = max_retries
+        self.max_wait_s = max_wait_s
+        self.retries = 0
+        self.waited_s = 0.0
+
+    def next_wait(self, retry_after_s: float | None) -> float | None:
+        """How long to wait before the next try, or None when the budget is spent."""
+        wait = retry_after_s if retry_after_s is not None else 0.5 * 2.0**self.retries
+        if self.retries >= self.max_retries or self.waited_s + wait > self.max_wait_s:
+            return None
+        self.retries += 1
+        self.waited_s += wait
+        return wait
 
 
 class TrajoptClient:
@@ -197,25 +265,35 @@ class TrajoptClient:
     # --- requests ------------------------------------------------------------------------
 
     def request(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
-        """One request, retried after Retry-After while the service answers 429 or 503 (within
-        the retry budget); a refusal raises its typed :class:`ApiError`."""
-        waited = 0.0
-        for attempt in range(self.max_retries + 1):
-            response = self.http.request(method, path, **kwargs)
+        """One request, tried again (within the retry budget) while the connection fails or the
+        service answers "not now" (:data:`RETRIED_STATUSES`); a refusal raises its typed
+        :class:`ApiError`, no answer at all :class:`ServiceUnreachableError`."""
+        budget = self._budget()
+        while True:
+            try:
+                response = self.http.request(method, path, **kwargs)
+            except RETRIED_ERRORS as exc:
+                wait = budget.next_wait(None)
+                if wait is None:
+                    raise self._unreachable(budget, exc) from exc
+                self._sleep(wait)
+                continue
             if response.status_code < 400:
                 return response
             error = error_from(response)
-            wait = error.retry_after_s if error.retry_after_s is not None else 2.0**attempt
-            retry = (
-                response.status_code in RETRIED_STATUSES
-                and attempt < self.max_retries
-                and waited + wait <= self.max_retry_wait_s
-            )
-            if not retry:
+            retried = response.status_code in RETRIED_STATUSES
+            wait = budget.next_wait(error.retry_after_s) if retried else None
+            if wait is None:
                 raise error
             self._sleep(wait)
-            waited += wait
-        raise AssertionError("unreachable")
+
+    def _budget(self) -> RetryBudget:
+        return RetryBudget(self.max_retries, self.max_retry_wait_s)
+
+    def _unreachable(self, budget: RetryBudget, last: Exception) -> ServiceUnreachableError:
+        return ServiceUnreachableError(
+            str(self.http.base_url), budget.retries + 1, budget.waited_s, last
+        )
 
     def _json(self, path: str, **params: Any) -> Any:
         return self.request("GET", path, params=params or None).json()
@@ -256,33 +334,82 @@ class TrajoptClient:
 
     def wait(self, job_id: str, timeout_s: float = 600.0, poll_s: float = 0.5) -> dict[str, Any]:
         """The job once finished (any terminal status); :class:`JobTimeoutError` after
-        ``timeout_s``. Follows the event stream, polling only if the stream breaks off."""
+        ``timeout_s``. Follows the event stream; while the stream is refused (429
+        ``too_many_streams``: until its Retry-After) or after it was cut (an API restart), the
+        job is polled every ``poll_s`` and the stream opened again from its last event. Once
+        the job was seen, a service out of reach is polled until ``timeout_s``."""
         deadline = time.monotonic() + timeout_s
         job = self.job(job_id)
+        last_id: str | None = None
+        stream_at = 0.0
         while job["status"] not in TERMINAL:
             left = deadline - time.monotonic()
             if left <= 0:
                 raise JobTimeoutError(job, timeout_s)
-            try:
-                for event, data in self.events(job_id, timeout_s=left):
-                    if event == "end":
-                        return dict(data)
-            except httpx.TimeoutException:
-                pass
-            job = self.job(job_id)
+            if time.monotonic() >= stream_at:
+                try:
+                    for event, data, ident in self._stream(job_id, left, last_id):
+                        last_id = ident or last_id
+                        if event == "end":
+                            return dict(data)
+                except ApiError as exc:
+                    if exc.status not in RETRIED_STATUSES:
+                        raise
+                    stream_at = time.monotonic() + (exc.retry_after_s or poll_s)
+                except STREAM_CUTS:
+                    pass  # cut: poll, then open it again
+                except httpx.ReadTimeout:
+                    pass  # silent until the deadline: poll once more
+            with contextlib.suppress(ServiceUnreachableError):  # restarting: try again
+                job = self.job(job_id)
             if job["status"] not in TERMINAL:
                 self._sleep(min(poll_s, max(deadline - time.monotonic(), 0.0)))
         return job
 
     def events(self, job_id: str, timeout_s: float | None = None) -> Iterator[tuple[str, Any]]:
         """The job's server-sent events as (event, data): ``iteration`` records, ``phase``
-        changes, then ``end`` (the finished job); replayed from the start for a finished job."""
+        changes, then ``end`` (the finished job); replayed from the start for a finished job.
+        A stream cut before its end, or refused for a while, is opened again (within the retry
+        budget, which each event received renews) from the last event received; ``timeout_s``
+        is the longest silence accepted (the service pings idle streams)."""
+        last_id: str | None = None
+        budget = self._budget()
+        while True:
+            failure: Exception
+            try:
+                for event, data, ident in self._stream(job_id, timeout_s, last_id):
+                    last_id, budget = ident or last_id, self._budget()
+                    yield event, data
+                    if event == "end":
+                        return
+                failure = httpx.RemoteProtocolError("the stream ended before its end event")
+            except ApiError as exc:
+                if exc.status not in RETRIED_STATUSES:
+                    raise
+                failure = exc
+            except STREAM_CUTS as exc:
+                failure = exc
+            retry_after = failure.retry_after_s if isinstance(failure, ApiError) else None
+            wait = budget.next_wait(retry_after)
+            if wait is None:
+                if isinstance(failure, ApiError):
+                    raise failure
+                raise self._unreachable(budget, failure) from failure
+            self._sleep(wait)
+
+    def _stream(
+        self, job_id: str, timeout_s: float | None, last_id: str | None
+    ) -> Iterator[tuple[str, Any, str | None]]:
+        """One event stream of the job, from after event ``last_id`` (all when None); a refusal
+        raises its :class:`ApiError`."""
         timeout = httpx.Timeout(self.http.timeout.connect, read=timeout_s)
-        with self.http.stream("GET", f"/v1/jobs/{job_id}/events", timeout=timeout) as response:
+        headers = {"Last-Event-ID": last_id} if last_id else None
+        path = f"/v1/jobs/{job_id}/events"
+        with self.http.stream("GET", path, timeout=timeout, headers=headers) as response:
             if response.status_code >= 400:
                 response.read()
                 raise error_from(response)
-            yield from parse_events(response.iter_lines())
+            yield from parse_event_records(response.iter_lines())
 
     def iterations(self, job_id: str, timeout_s: float | None = None) -> Iterator[dict[str, Any]]:
         """Each iteration record of the job as it arrives, until the job ends."""

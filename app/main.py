@@ -22,6 +22,7 @@ from app.metrics import build_registry
 from app.middleware import BodySizeLimit
 from app.openapi import install_openapi
 from app.ratelimit import MemoryRateLimiter, RateLimiter, RedisRateLimiter
+from app.render_pool import RenderPool
 from app.routes import batches, catalog, events, health, jobs, problems, report, ui
 from app.settings import Settings, get_settings
 from app.state import ServiceState
@@ -70,12 +71,13 @@ def build_service(settings: Settings, dispatcher: Dispatcher | None = None) -> S
         )
     else:
         rate_limiter = MemoryRateLimiter()
+    renders = RenderPool(settings.render_processes, settings.render_queue_per_client)
     return ServiceState(
         settings=settings,
         database=database,
         dispatcher=dispatcher,
         waker=waker,
-        registry=build_registry(database, dispatcher),
+        registry=build_registry(database, dispatcher, renders),
         rate_limiter=rate_limiter,
         streams=StreamHub(
             database,
@@ -84,6 +86,7 @@ def build_service(settings: Settings, dispatcher: Dispatcher | None = None) -> S
             max_streams_per_client=settings.max_streams_per_client,
             min_read_gap_s=settings.event_poll_interval_s,
         ),
+        renders=renders,
     )
 
 
@@ -141,6 +144,7 @@ def create_app(settings: Settings | None = None, dispatcher: Dispatcher | None =
             yield
         finally:
             sweeper.stop()
+            service.renders.shutdown()
             service.dispatcher.shutdown()
             service.rate_limiter.close()
             await service.streams.close()

@@ -1,7 +1,8 @@
 """Prometheus metrics read from the source of truth at scrape time.
 
 Jobs by status and the solve-time histogram come from the database (so they cover every worker
-process and survive restarts); the queue depth comes from the dispatcher.
+process and survive restarts); the queue depth comes from the dispatcher; the plot renders of
+this API process from its render pool.
 """
 
 from __future__ import annotations
@@ -10,10 +11,16 @@ import logging
 from collections.abc import Iterator
 
 from prometheus_client import CollectorRegistry
-from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily, Metric
+from prometheus_client.core import (
+    CounterMetricFamily,
+    GaugeMetricFamily,
+    HistogramMetricFamily,
+    Metric,
+)
 from prometheus_client.registry import Collector
 
 from app.dispatch import Dispatcher
+from app.render_pool import RenderPool
 from app.storage import repository
 from app.storage.session import Database
 
@@ -88,8 +95,41 @@ def _le(bound: float) -> str:
     return repr(float(bound))
 
 
-def build_registry(database: Database, dispatcher: Dispatcher) -> CollectorRegistry:
-    """A registry holding only this service's collector (no process-global state)."""
+class RenderCollector(Collector):
+    """Yields ``trajopt_plot_renders_total``, ``trajopt_plot_render_refusals_total`` and
+    ``trajopt_plot_renders_waiting`` of this API process."""
+
+    def __init__(self, renders: RenderPool) -> None:
+        self._renders = renders
+
+    def describe(self) -> list[Metric]:
+        """Nothing up front (like :class:`ServiceCollector`)."""
+        return []
+
+    def collect(self) -> Iterator[Metric]:
+        """The render pool's counts now."""
+        renders = self._renders
+        yield CounterMetricFamily(
+            "trajopt_plot_renders", "Plots rendered by this API process", value=renders.rendered
+        )
+        yield CounterMetricFamily(
+            "trajopt_plot_render_refusals",
+            "Plot requests refused with too_many_renders by this API process",
+            value=renders.refused,
+        )
+        yield GaugeMetricFamily(
+            "trajopt_plot_renders_waiting",
+            "Plots waiting for a render process of this API process",
+            value=renders.waiting(),
+        )
+
+
+def build_registry(
+    database: Database, dispatcher: Dispatcher, renders: RenderPool | None = None
+) -> CollectorRegistry:
+    """A registry holding only this service's collectors (no process-global state)."""
     registry = CollectorRegistry(auto_describe=False)
     registry.register(ServiceCollector(database, dispatcher))
+    if renders is not None:
+        registry.register(RenderCollector(renders))
     return registry

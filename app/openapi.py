@@ -65,6 +65,8 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
     ("get", "/v1/jobs/{job_id}/plots/{name}.{fmt}"): {
         404: ["job_not_found", "plot_not_found", "plot_format_not_found"],
         409: ["job_not_finished", "result_unavailable"],
+        429: ["rate_limited", "too_many_renders"],
+        503: ["database_unavailable", "render_unavailable"],
     },
     ("delete", "/v1/jobs/{job_id}"): {409: ["job_finished"]},
     ("get", "/v1/jobs/{job_id}/events"): {429: ["rate_limited", "too_many_streams"]},
@@ -79,7 +81,9 @@ OPERATION_ERRORS: dict[tuple[str, str], dict[int, list[str]]] = {
         429: ["submit_rate_limited", "too_many_active_jobs"],
     },
     ("get", "/v1/batches/{batch_id}/plot.{fmt}"): {
-        404: ["batch_not_found", "plot_format_not_found"]
+        404: ["batch_not_found", "plot_format_not_found"],
+        429: ["rate_limited", "too_many_renders"],
+        503: ["database_unavailable", "render_unavailable"],
     },
 }
 

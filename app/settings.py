@@ -119,6 +119,18 @@ class Settings(BaseSettings):
     max_streams_per_client: int = Field(
         default=10, ge=1, description="Event streams one client may keep open on one API process."
     )
+    render_processes: int = Field(
+        default=1,
+        ge=1,
+        le=16,
+        description="Processes one API process renders plots in (started at the first plot).",
+    )
+    render_queue_per_client: int = Field(
+        default=16,
+        ge=1,
+        description="Plots one client may have waiting or rendering on one API process (one "
+        "renders at a time); past it, 429 too_many_renders.",
+    )
     event_poll_interval_s: float = Field(default=0.05, gt=0, le=5)
     event_ping_interval_s: float = Field(default=15.0, gt=0)
     request_timeout_s: float = Field(default=2.0, gt=0)

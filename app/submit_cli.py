@@ -16,7 +16,13 @@ from typing import Any
 
 import httpx
 
-from app.client import ApiError, InvalidRequestError, JobTimeoutError, TrajoptClient
+from app.client import (
+    ApiError,
+    InvalidRequestError,
+    JobTimeoutError,
+    ServiceUnreachableError,
+    TrajoptClient,
+)
 
 DEFAULT_SERVER = "http://127.0.0.1:8000"
 
@@ -33,6 +39,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", help="with --wait: write the result document here")
     parser.add_argument("--csv", help="with --wait: write the trajectory CSV here")
     parser.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+    parser.add_argument(
+        "--retries",
+        type=int,
+        default=5,
+        help="tries again a request that gets no answer, or a 'not now' answer, up to this "
+        "many times (waiting 0.5, 1, 2, 4, 8 s, or the service's Retry-After; default 5)",
+    )
 
 
 def add_service_arguments(parser: argparse.ArgumentParser) -> None:
@@ -142,7 +155,7 @@ def run(args: argparse.Namespace, server: str, api_key: str | None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    with TrajoptClient(server, api_key) as client:
+    with TrajoptClient(server, api_key, max_retries=max(args.retries, 0)) as client:
         try:
             job = client.submit(body)
             print(f"job {job['id']} {job['status']}: {server.rstrip('/')}/ui/jobs/{job['id']}")
@@ -165,6 +178,9 @@ def run(args: argparse.Namespace, server: str, api_key: str | None) -> int:
         except JobTimeoutError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 1
+        except ServiceUnreachableError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         except httpx.TransportError as exc:
             print(f"error: cannot reach {server}: {exc}", file=sys.stderr)
             return 2

@@ -10,8 +10,9 @@ track (great-circle circles on an equirectangular map with the aspect of the mid
 from __future__ import annotations
 
 import io
+import json
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import matplotlib
@@ -49,7 +50,12 @@ Result = Mapping[str, Any]
 
 
 class UnknownPlotError(KeyError):
-    """No plot of that name for this result (the message lists the available ones)."""
+    """No plot ``name`` for this result; ``available`` lists the plots it has."""
+
+    def __init__(self, name: str, available: Sequence[str] = ()) -> None:
+        super().__init__(name, list(available))
+        self.name = name
+        self.available = list(available)
 
 
 def _columns(result: Result, key: str) -> dict[str, np.ndarray]:
@@ -358,8 +364,9 @@ def available_plots(result: Result) -> list[str]:
 
 def figure(result: Result, name: str) -> Figure:
     """The figure of plot ``name`` for ``result``; UnknownPlotError when it has none."""
-    if name not in available_plots(result):
-        raise UnknownPlotError(name)
+    names = available_plots(result)
+    if name not in names:
+        raise UnknownPlotError(name, names)
     fig = Figure(figsize=FIGURE_SIZE_IN, dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)  # its own raster canvas: no pyplot, no global backend
     PLOTS[name](fig, result)
@@ -374,3 +381,9 @@ def render_plot(result: Result, name: str, fmt: str) -> bytes:
     metadata = {"Date": None} if fmt == "svg" else {}  # no creation date in the file
     figure(result, name).savefig(buffer, format=fmt, dpi=DPI, metadata=metadata)
     return buffer.getvalue()
+
+
+def render_stored_plot(result_json: str, name: str, fmt: str) -> bytes:
+    """Plot ``name`` of a result document given as its JSON text (as the database holds it: a
+    render process decodes it itself, so the server's process never does)."""
+    return render_plot(json.loads(result_json), name, fmt)

@@ -6,13 +6,15 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, BackgroundTasks, Query, Response
+from starlette.concurrency import run_in_threadpool
 
 from app import batches_service
 from app.body import ProblemBody
-from app.deps import DatabaseDep, DispatcherDep, OwnerDep, SettingsDep, SubmitterDep
+from app.deps import DatabaseDep, DispatcherDep, OwnerDep, ServiceDep, SettingsDep, SubmitterDep
 from app.report import PLOT_FORMATS
+from app.report.batch import render_summary_plot
 from app.routes.accepted import IdempotencyKey, accepted
-from app.routes.report import plot_media_type
+from app.routes.report import RENDER_ERRORS, plot_media_type
 from app.views import BatchPage, BatchSummary, BatchView, ErrorResponse
 
 router = APIRouter(prefix="/v1/batches", tags=["batches"])
@@ -163,13 +165,25 @@ def get_summary_csv(batch_id: str, database: DatabaseDep, owner: OwnerDep) -> Re
     responses={
         200: {"content": {media: {} for media in PLOT_FORMATS.values()}},
         **_NOT_FOUND,
+        **RENDER_ERRORS,
     },
     summary="The batch's plot (PNG or SVG)",
 )
-def get_plot(batch_id: str, fmt: str, database: DatabaseDep, owner: OwnerDep) -> Response:
+async def get_plot(batch_id: str, fmt: str, service: ServiceDep, owner: OwnerDep) -> Response:
     """Objective against the grid's parameters, the dispersed runs' terminal points, or the
-    methods side by side."""
+    methods side by side. Kept until one of the batch's children changes; rendered like a job's
+    plots (in a render process, one of the client's plots at a time)."""
     media_type = plot_media_type(fmt)
-    return Response(
-        batches_service.summary_plot(database, owner, batch_id, fmt), media_type=media_type
+    database = service.database
+    state = await run_in_threadpool(batches_service.plot_state, database, owner, batch_id)
+
+    async def prepare() -> tuple[Any, ...]:
+        kind, rows, paths, tracks = await run_in_threadpool(
+            batches_service.plot_inputs, database, owner, batch_id
+        )
+        return kind, rows, paths, fmt, tracks
+
+    image = await service.renders.render(
+        owner, ("batch", batch_id, fmt, state), render_summary_plot, prepare=prepare
     )
+    return Response(image, media_type=media_type)

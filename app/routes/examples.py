@@ -331,6 +331,23 @@ ERROR_EXAMPLES: dict[str, dict[str, Any]] = {
             "10 (TRAJOPT_MAX_STREAMS_PER_CLIENT); close one, or retry after 5 s",
         },
     ),
+    "too_many_renders": _error(
+        429,
+        "this client's plots wait to be rendered; retry after Retry-After seconds",
+        {
+            "code": "too_many_renders",
+            "message": "this client has 16 plots waiting or rendering, at most 16 "
+            "(TRAJOPT_RENDER_QUEUE_PER_CLIENT); retry after 2 s",
+        },
+    ),
+    "render_unavailable": _error(
+        503,
+        "a render process stopped and is being replaced; retry after Retry-After seconds",
+        {
+            "code": "render_unavailable",
+            "message": "a plot-rendering process stopped; it is being restarted, retry after 2 s",
+        },
+    ),
     "database_unavailable": _error(
         503,
         "the database is unreachable; retry after Retry-After seconds",

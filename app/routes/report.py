@@ -1,5 +1,6 @@
 """``/v1/jobs/{id}/trajectory.csv`` and ``/v1/jobs/{id}/plots``: a finished job's result to look at
-(CSV and plots rendered server-side), for the job's owner only, like its result."""
+(CSV and plots rendered server-side, in the render processes: :mod:`app.render_pool`), for the
+job's owner only, like its result."""
 
 from __future__ import annotations
 
@@ -7,19 +8,17 @@ import json
 from typing import Any
 
 from fastapi import APIRouter, Response
+from starlette.concurrency import run_in_threadpool
 
 from app import jobs_service
-from app.deps import DatabaseDep, OwnerDep
+from app.deps import DatabaseDep, OwnerDep, ServiceDep
 from app.errors import ApiError
-from app.report import PLOT_FORMATS, available_plots, render_plot, trajectory_csv
-from app.report.cache import RenderCache
+from app.report import PLOT_FORMATS, available_plots, trajectory_csv
+from app.report.plots import UnknownPlotError, render_stored_plot
 from app.report.table import NoTrajectoryError
 from app.views import ErrorResponse
 
 router = APIRouter(prefix="/v1/jobs", tags=["results"])
-
-PLOTS = RenderCache()
-"""This process's rendered plots of finished jobs (a finished result never changes)."""
 
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorResponse, "description": "No such job of yours (or no such plot)."},
@@ -73,6 +72,21 @@ def list_plots(job_id: str, database: DatabaseDep, owner: OwnerDep) -> list[str]
     return available_plots(_result(database, owner, job_id))
 
 
+RENDER_ERRORS: dict[int | str, dict[str, Any]] = {
+    429: {
+        "model": ErrorResponse,
+        "description": "Rate limit, or too many of this client's plots waiting to be rendered "
+        "(`too_many_renders`); retry after Retry-After.",
+    },
+    503: {
+        "model": ErrorResponse,
+        "description": "The database is unreachable, or a render process is being restarted "
+        "(`render_unavailable`); retry after Retry-After.",
+    },
+}
+"""The refusals of a route that renders a plot."""
+
+
 @router.get(
     "/{job_id}/plots/{name}.{fmt}",
     response_class=Response,
@@ -82,23 +96,29 @@ def list_plots(job_id: str, database: DatabaseDep, owner: OwnerDep) -> list[str]
             "content": {media: {} for media in PLOT_FORMATS.values()},
         },
         **_ERRORS,
+        **RENDER_ERRORS,
     },
     summary="Render one plot (PNG or SVG)",
 )
-def get_plot(job_id: str, name: str, fmt: str, database: DatabaseDep, owner: OwnerDep) -> Response:
+async def get_plot(
+    job_id: str, name: str, fmt: str, service: ServiceDep, owner: OwnerDep
+) -> Response:
     """Plot ``name`` (one of ``/plots``) as ``fmt`` (png or svg): optimized nodes over the
-    propagated flight, with the limits and no-fly zones."""
+    propagated flight, with the limits and the no-fly zones. Rendered once per API process, in
+    a render process, one of the client's plots at a time."""
     media_type = plot_media_type(fmt)
-    result = _result(database, owner, job_id)
-    names = available_plots(result)
-    if name not in names:
+    text = await run_in_threadpool(jobs_service.get_result, service.database, owner, job_id)
+    try:
+        image = await service.renders.render(
+            owner, ("job", job_id, name, fmt), render_stored_plot, text, name, fmt
+        )
+    except UnknownPlotError as exc:
         raise ApiError(
             404,
             "plot_not_found",
-            f"job {job_id} has no plot {name!r}; its plots: {', '.join(names) or 'none'}",
+            f"job {job_id} has no plot {name!r}; its plots: {', '.join(exc.available) or 'none'}",
             field="name",
-        )
-    image = PLOTS.get((job_id, name, fmt), lambda: render_plot(result, name, fmt))
+        ) from None
     return Response(image, media_type=media_type)
 
 

@@ -1073,6 +1073,20 @@ def batch_children(
         start += chunk
 
 
+def batch_children_state(session: Session, batch_id: str, owner: str) -> list[tuple[Any, ...]]:
+    """Each child's status in order, with when it last changed once finished (an active child's
+    progress changes nothing a summary shows): what a batch's plot depends on."""
+    stmt = (
+        select(Job.status, Job.updated_at)
+        .where(Job.batch_id == batch_id, Job.owner == owner)
+        .order_by(Job.batch_index)
+    )
+    return [
+        (status, None if status in ACTIVE_STATUSES else updated_at)
+        for status, updated_at in session.execute(stmt)
+    ]
+
+
 def _nested(parts: Iterable[tuple[tuple[str, ...], Any]]) -> dict[str, Any]:
     """A document holding each value at its path (absent values left out)."""
     document: dict[str, Any] = {}

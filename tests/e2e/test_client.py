@@ -226,11 +226,11 @@ def test_trajopt_submit_waits_and_writes_the_result(
     )
     assert bad.returncode == 2 and "method.nodes" in bad.stderr and "Traceback" not in bad.stderr
     gone = subprocess.run(
-        [*command[:5], "--server", "http://127.0.0.1:9"],
+        [*command[:5], "--server", "http://127.0.0.1:9", "--retries", "1"],
         cwd=tmp_path,
         env=service_free_env(),
         capture_output=True,
         text=True,
         timeout=60,
     )
-    assert gone.returncode == 2 and "cannot reach" in gone.stderr
+    assert gone.returncode == 2 and "cannot reach http://127.0.0.1:9 after 2 tries" in gone.stderr

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import struct
+import time
 import xml.etree.ElementTree as ET
 from typing import Any
 
@@ -99,3 +100,46 @@ def test_refusals_name_what_is_wrong(
         assert embedded_client.http.get(f"/v1/jobs/{running['id']}/plots").status_code == 409
     finally:
         embedded_client.http.delete(f"/v1/jobs/{running['id']}")
+
+
+def _renders(client: ServiceClient) -> float:
+    """The server's ``trajopt_plot_renders_total``."""
+    for line in client.http.get("/metrics").text.splitlines():
+        if line.startswith("trajopt_plot_renders_total "):
+            return float(line.split()[1])
+    raise AssertionError("no trajopt_plot_renders_total in /metrics")
+
+
+def test_a_batch_plot_is_kept_until_a_child_changes(embedded_client: ServiceClient) -> None:
+    base = long_job(ZONE_SCENARIO)
+    grid = {"parameters": [{"path": "/method/max_iterations", "values": [2, 500]}]}
+    answer = embedded_client.http.post("/v1/batches", json={"base": base, "grid": grid})
+    assert answer.status_code == 202, answer.text
+    batch = answer.json()["id"]
+    deadline = time.monotonic() + 120
+    # the children run in order on the one job process: the first ends, the second runs on
+    while set(embedded_client.http.get(f"/v1/batches/{batch}").json()["counts"]) != {
+        "failed",
+        "running",
+    }:
+        assert time.monotonic() < deadline, "the second child never ran"
+        time.sleep(0.1)
+    before = _renders(embedded_client)
+    plot = f"/v1/batches/{batch}/plot.png"
+    started = time.perf_counter()
+    first = embedded_client.http.get(plot)
+    rendered_s = time.perf_counter() - started
+    started = time.perf_counter()
+    again = [embedded_client.http.get(plot).content for _ in range(10)]
+    kept_s = time.perf_counter() - started
+    assert first.status_code == 200 and again == [first.content] * 10
+    assert _renders(embedded_client) == before + 1
+    # ten answers of the kept plot cost less than a few renders (each would render once more)
+    assert kept_s < 3 * rendered_s, (kept_s, rendered_s)
+    assert embedded_client.http.delete(f"/v1/batches/{batch}").status_code == 200
+    while embedded_client.http.get(f"/v1/batches/{batch}").json()["status"] == "running":
+        assert time.monotonic() < deadline + 60, "the batch was not cancelled"
+        time.sleep(0.1)
+    assert embedded_client.http.get(plot).status_code == 200  # a child moved: rendered again
+    embedded_client.http.get(plot)
+    assert _renders(embedded_client) == before + 2

@@ -12,7 +12,10 @@ from __future__ import annotations
 import contextlib
 import json
 import re
+import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +25,7 @@ from fastapi.testclient import TestClient
 from app.auth import create_key
 from app.docs_ui import CONTENT_SECURITY_POLICY
 from app.main import create_app
+from app.render_pool import RenderPool
 from app.routes.examples import ERROR_EXAMPLES, JOB_ID, RESULT_EXAMPLES
 from app.schemas import RLV_MIN_HEAT_LOAD
 from app.schemas.result import ResultDocument
@@ -196,7 +200,28 @@ def _apps(tmp: Path) -> dict[str, TestClient]:
             )
         ),
         "unreachable": TestClient(create_app(_settings(tmp / "unreachable"), Unreachable())),
+        "renders": TestClient(create_app(_settings(tmp / "renders"), RecordingDispatcher())),
     }
+
+
+class HeldRenders(Executor):
+    """Render processes that never finish a render until told to (``release``), or that are
+    broken (``broken``): a render queue that stays full, a render process that dies."""
+
+    def __init__(self) -> None:
+        self.held: list[Future[Any]] = []
+        self.broken = False
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
+        if self.broken:
+            raise BrokenProcessPool("a render process died")
+        future: Future[Any] = Future()
+        self.held.append(future)
+        return future
+
+    def release(self) -> None:
+        for future in self.held:
+            future.set_result(b"\x89PNG")
 
 
 def _invalid_problem() -> dict[str, Any]:
@@ -243,6 +268,33 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
     def submit_twice() -> Any:
         keys.post("/v1/jobs", json=scenario, headers={"X-API-Key": submitter})
         return keys.post("/v1/jobs", json=scenario, headers={"X-API-Key": submitter})
+
+    renders = apps["renders"]
+    held = HeldRenders()
+    service = renders.app.state.service  # type: ignore[attr-defined]
+    service.renders = RenderPool(1, 1, make_executor=lambda _: held)
+
+    def rendered_job() -> str:
+        job_id: str = renders.post("/v1/jobs", json=scenario).json()["id"]
+        run_as_worker(service.database, job_id, 1, "succeeded")
+        return job_id
+
+    def second_render() -> Any:
+        """A plot being rendered (held), then another of the same client: its queue of one
+        is full."""
+        job_id = rendered_job()
+        with ThreadPoolExecutor(1) as thread:
+            first = thread.submit(renders.get, f"/v1/jobs/{job_id}/plots/convergence.png")
+            while not held.held:
+                time.sleep(0.01)
+            refused = renders.get(f"/v1/jobs/{job_id}/plots/convergence.svg")
+            held.release()
+            assert first.result().status_code == 200
+        return refused
+
+    def broken_renders() -> Any:
+        held.broken = True
+        return renders.get(f"/v1/jobs/{rendered_job()}/plots/convergence.png")
 
     def eleven_streams() -> Any:
         """Ten streams of a queued job held open (they only ping), then one more."""
@@ -300,6 +352,8 @@ def _provokers(apps: dict[str, TestClient], tmp: Path) -> dict[str, Callable[[],
         "submit_rate_limited": submit_twice,
         "too_many_active_jobs": two_active,
         "too_many_streams": eleven_streams,
+        "too_many_renders": second_render,
+        "render_unavailable": broken_renders,
         "queue_unavailable": lambda: apps["unreachable"].post("/v1/jobs", json=scenario),
         "not_ready": lambda: apps["down"].get("/readyz"),
         "database_unavailable": lambda: apps["no_database"].get("/v1/jobs"),

@@ -1,0 +1,73 @@
+"""One client's plots do not slow another's: two clients (api-keys mode) of one embedded server,
+client A asking for many plots at once on six connections, client B for its first plot and its
+job's status meanwhile (the measurement of ``python -m bench.plot_isolation``).
+
+Every bound compares B under A's load with B alone in the same test, so a machine shared with
+other work moves both sides: what it checks is the scheduling, not the machine's speed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from bench.plot_isolation import SCENARIO, finished_jobs, isolation
+from tests.integration.harness import ApiServer, create_api_key, embedded_env
+
+pytestmark = pytest.mark.slow
+
+SECRET = "e2e-only-7a2c9e4f1b3d5a6c8e0f2b4d6a8c0e1f"
+
+
+@pytest.fixture
+def server(tmp_path: Path) -> Iterator[tuple[ApiServer, tuple[str, str]]]:
+    env = embedded_env(
+        tmp_path,
+        TRAJOPT_AUTH_MODE="api-keys",
+        TRAJOPT_API_KEY_SECRET=SECRET,
+        TRAJOPT_RENDER_PROCESSES="1",
+    )
+    keys = (create_api_key(env, "renders-a-lot"), create_api_key(env, "other"))
+    api = ApiServer(env, tmp_path / "serve.log")
+    api.start_and_wait()
+    try:
+        yield api, keys
+    finally:
+        api.stop()
+
+
+def test_another_clients_first_plot_and_reads_do_not_wait_for_one_clients_renders(
+    server: tuple[ApiServer, tuple[str, str]],
+) -> None:
+    api, keys = server
+    jobs = []
+    for key, count in zip(keys, (1, 2), strict=True):
+        with httpx.Client(base_url=api.base_url, headers={"X-API-Key": key}, timeout=60) as http:
+            jobs.append(finished_jobs(http, {"scenario": SCENARIO}, count))
+    assert api.process is not None
+    figures = isolation(
+        api.base_url,
+        keys,
+        jobs[0],
+        (jobs[1][0], jobs[1][1]),
+        connections=6,
+        window_s=3.0,
+        server_pid=api.process.pid,
+    )
+    reads, alone, loaded = figures["reads"], figures["alone"], figures["loaded"]
+    assert figures["a_answers"].get(200, 0) >= 2, figures  # A did render meanwhile
+    # B's first plot waits for A's render in progress at most (one plot, plus one whose answer
+    # may still be on its way), never for A's queue: six of A's plots arrived before it when
+    # every plot of the process took its turn on one lock
+    assert figures["a_plots_while_b_waited"] <= 2, figures
+    # ... so it takes at most about twice as long as alone (A's first renders are of the same
+    # plot as B's): 4.8-6.3 times when it waited for A's queue
+    assert loaded["first_plot_s"] <= 3 * alone["first_plot_s"], figures
+    # B's reads: renders in the server's own threads held its interpreter lock (p95 5-9 times
+    # that of B's reads alone); in their own processes they leave the server's CPU to requests
+    assert loaded["read_p95_ms"] <= 3 * reads["read_p95_ms"] + 15, figures
+    if reads["server_cpu"] > 0:  # Linux: the API process itself does not render
+        assert loaded["server_cpu"] <= 2 * reads["server_cpu"] + 0.05, figures
