@@ -19,6 +19,11 @@ PRIORITY_LEVELS = 10
 ``queue:N`` for N, and workers pop the lowest non-empty level first."""
 
 
+CLAIM_RETRY_MAX_S = 10
+"""Longest back-off of a task that could not claim its job (the database unreachable): its
+message is held, delivered, for at most this long before the task runs again."""
+
+
 def priority_lists(queue: str) -> list[str]:
     """The Redis lists holding ``queue``'s messages, highest priority first."""
     return [queue, *(f"{queue}:{level}" for level in range(1, PRIORITY_LEVELS))]

@@ -155,7 +155,7 @@ class LocalDispatcher:
             log.info("%d interrupted job(s) put back in the queue", len(released))
         for job_id in job_ids:
             log.info("dispatching unfinished job %s", job_id)
-            self.submit(job_id, TimeLimits(0, 0, 0), fair_priority(database, job_id))
+            self.submit(job_id, TimeLimits(0, 0, 0, 0), fair_priority(database, job_id))
 
     def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
         """Queue the job (limits are applied inside ``execute_job``): it goes to the pool when

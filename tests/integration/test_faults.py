@@ -2,8 +2,9 @@
 a Redis restart, against real PostgreSQL and Redis. Each test asserts counts: every accepted job
 ends terminal, each finished job stored exactly one outcome, and none is left queued or running.
 
-The deployment here uses short leases (2 s, swept every 0.5 s) and short Celery margins so lost
-workers are noticed in seconds rather than the production defaults' tens of seconds.
+The deployment here uses short leases (2 s, swept every 0.5 s), short Celery margins and a short
+hold of a finished result (4 s) so lost workers are noticed, and a frozen one killed, in seconds
+rather than the production defaults' tens of seconds or minutes.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ FAULT_SETTINGS = {
     "TRAJOPT_SOFT_LIMIT_MARGIN_S": "1",
     "TRAJOPT_HARD_LIMIT_GRACE_S": "1",
     "TRAJOPT_MAX_ATTEMPTS": "3",
+    "TRAJOPT_RESULT_WRITE_RETRY_S": "4",
 }
 SMALL = {"scenario": SCENARIO, "method": {"nodes": 41, "max_iterations": 8}}
 """A job of about a second; it ends succeeded or failed, both terminal."""
@@ -292,12 +294,13 @@ def test_the_hard_time_limit_ends_a_runaway_solve_and_the_worker_goes_on(
     db = fault_env["DATABASE_URL"]
     worker = workers.start()
     body = long_job(SCENARIO)
-    body["method"]["time_limit_s"] = 3.0  # soft limit 4 s, hard limit 5 s in this deployment
+    body["method"]["time_limit_s"] = 3.0  # soft limit 4 s, hard limit 9 s in this deployment
     runaway = fault_client.submit(body)["id"]
     wait_for_row(db, runaway, running_with_progress, 60)
     # Stopped at 1.8 s of its 3 s: it never returns and ignores signals. Its lease (2 s) lapses
-    # long before the hard limit kills it; it had run 1.8 s, under its limit, so it is re-queued
-    # (only the time an attempt ran counts), and its second attempt ends at its own limit.
+    # long before the hard limit (the limit, both margins and the 4 s result hold: 9 s) kills
+    # it; it had run 1.8 s, under its limit, so it is re-queued (only the time an attempt ran
+    # counts), and its second attempt ends at its own limit.
     while _running_for(db, runaway) < 1.8:
         time.sleep(0.05)
     stopped = kill_children(worker, signal.SIGSTOP)
