@@ -7,10 +7,12 @@ running jobs whose worker stopped renewing its lease: a lapsed lease means the w
 (killed, out of memory, hard time limit, lost machine). The job is re-queued while it has
 attempts left, ends ``timed_out`` (history kept) when the attempt had run for its whole time
 limit, and ``failed``/``worker_lost`` after the attempt cap. Queued jobs left untouched for long
-are made due again (their message may have died with a broker). After the database was
-unreachable, leases get one lease period of grace: workers could not renew them either. Every
-change is a conditional update, so several API processes can sweep the same database. Failures
-are logged once per streak, then at growing intervals (:mod:`app.failure_log`).
+are made due again (their message may have died with a broker), and so is a queued job held by
+the local pool of a server that is gone (its process no longer exists, or it stopped renewing
+its hold). After the database was unreachable, leases and holds get one lease period of grace:
+workers could not renew them either. Every change is a conditional update, so several API
+processes can sweep the same database. Failures are logged once per streak, then at growing
+intervals (:mod:`app.failure_log`).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from datetime import datetime
 
 from app.dispatch import Dispatcher
 from app.dispatch.fair import fair_priority
+from app.dispatch.local import holder_is_gone
 from app.failure_log import FailureLog
 from app.settings import Settings
 from app.storage import repository
@@ -45,6 +48,7 @@ class SweepReport:
     worker_lost: list[str] = field(default_factory=list)
     cancelled: list[str] = field(default_factory=list)
     resent: list[str] = field(default_factory=list)
+    taken_over: list[str] = field(default_factory=list)
 
 
 def sweep_once(
@@ -56,13 +60,19 @@ def sweep_once(
     lapse_checks: bool = True,
     send_failures: FailureLog | None = None,
 ) -> SweepReport:
-    """Handle every lapsed running job (unless ``lapse_checks`` is off: the grace after a
-    database outage), make stale queued jobs due, then relay every due job; returns what
-    changed."""
+    """Handle every lapsed running job and lapsed pool hold (unless ``lapse_checks`` is off:
+    the grace after a database outage), take over the queued jobs of a server that is gone,
+    make stale queued jobs due, then relay every due job; returns what changed."""
     now = now or utcnow()
     report = SweepReport()
     if lapse_checks:
         _handle_lapsed(database, settings, now, on_end, report)
+    with database.session() as session:
+        report.taken_over.extend(
+            repository.release_holds(session, now, holder_is_gone, lapsed=lapse_checks)
+        )
+    for job_id in report.taken_over:
+        log.warning("job %s: the server whose pool held it is gone; taking it over", job_id)
     if settings.requeue_queued_after_s > 0:
         with database.session() as session:
             stale = repository.claim_stale_queued(session, now, settings.requeue_queued_after_s)

@@ -589,12 +589,13 @@ def claim_stale_queued(
 ) -> list[str]:
     """Queued jobs untouched for ``older_than_s``, made due to be sent again (their queue
     message may have been lost with a broker); ``updated_at`` is bumped so only one sweeper
-    takes each."""
+    takes each. A job a live local pool holds (its hold renewed) waits there its turn."""
     cutoff = now - timedelta(seconds=older_than_s)
+    unheld = or_(Job.lease_holder.is_(None), Job.lease_expires_at < now)
     ids = list(
         session.execute(
             select(Job.id)
-            .where(Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff)
+            .where(Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff, unheld)
             .order_by(Job.updated_at)
             .limit(limit)
         ).scalars()
@@ -693,6 +694,113 @@ def mark_dispatched(session: Session, job_id: str) -> bool:
         .execution_options(**_NO_SYNC)
     )
     return _rowcount(session.execute(stmt)) == 1
+
+
+def hold_queued(
+    session: Session,
+    job_id: str,
+    holder: str,
+    hold_s: float,
+    progress: dict[str, Any] | None = None,
+) -> bool:
+    """Record that the local pool of the server ``holder`` (``host/pid``) holds a queued job,
+    for ``hold_s`` unless renewed (:func:`renew_holds`); with ``progress`` as its note."""
+    now = utcnow()
+    values: dict[str, Any] = {
+        "lease_holder": holder,
+        "lease_expires_at": now + timedelta(seconds=hold_s),
+    }
+    if progress is not None:
+        values.update(progress=progress, updated_at=now)
+    stmt = (
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
+        .values(**values)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def renew_holds(session: Session, holder: str, hold_s: float) -> int:
+    """Push ahead the holds of every queued job ``holder``'s pool holds; how many."""
+    stmt = (
+        update(Job)
+        .where(Job.status == JobStatus.QUEUED.value, Job.lease_holder == holder)
+        .values(lease_expires_at=utcnow() + timedelta(seconds=hold_s))
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt))
+
+
+def release_holds(
+    session: Session,
+    now: datetime,
+    is_gone: Callable[[str], bool],
+    *,
+    lapsed: bool = True,
+) -> list[str]:
+    """Free the queued jobs held by a pool whose server ``is_gone`` (or, with ``lapsed``,
+    whose hold was not renewed in time) and make them due now, for the relay of any server to
+    send; returns their ids. Each change is fenced by the holder and the hold seen."""
+    rows = session.execute(
+        select(Job.id, Job.lease_holder, Job.lease_expires_at).where(
+            Job.status == JobStatus.QUEUED.value, Job.lease_holder.is_not(None)
+        )
+    ).all()
+    released: list[str] = []
+    for job_id, holder, until in rows:
+        expired = lapsed and (until is None or until < now)
+        if not (expired or is_gone(str(holder))):
+            continue
+        held = Job.lease_expires_at.is_(None) if until is None else Job.lease_expires_at == until
+        stmt = (
+            update(Job)
+            .where(
+                Job.id == job_id,
+                Job.status == JobStatus.QUEUED.value,
+                Job.lease_holder == holder,
+                held,
+            )
+            .values(lease_holder=None, lease_expires_at=None, dispatch_due_at=now, updated_at=now)
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            released.append(str(job_id))
+    return released
+
+
+def take_queued(
+    session: Session, holder: str, hold_s: float, is_gone: Callable[[str], bool]
+) -> list[str]:
+    """Queued jobs free for ``holder``'s pool, oldest first, each now held by it: those held by
+    no pool, by this one, or by a pool whose server is gone or whose hold lapsed (never one a
+    live server holds). Their outbox entries are closed: the pool is their queue."""
+    now = utcnow()
+    rows = session.execute(
+        select(Job.id, Job.lease_holder, Job.lease_expires_at)
+        .where(Job.status == JobStatus.QUEUED.value)
+        .order_by(Job.created_at, Job.id)
+    ).all()
+    taken: list[str] = []
+    for job_id, held_by, until in rows:
+        held_elsewhere = held_by is not None and held_by != holder
+        if held_elsewhere and until is not None and until >= now and not is_gone(str(held_by)):
+            continue  # another live server's pool holds it
+        same = Job.lease_holder.is_(None) if held_by is None else Job.lease_holder == held_by
+        stmt = (
+            update(Job)
+            .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value, same)
+            .values(
+                lease_holder=holder,
+                lease_expires_at=now + timedelta(seconds=hold_s),
+                dispatch_due_at=None,
+                updated_at=now,
+            )
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            taken.append(str(job_id))
+    return taken
 
 
 def claim_due_dispatches(
