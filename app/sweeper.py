@@ -7,12 +7,13 @@ running jobs whose worker stopped renewing its lease: a lapsed lease means the w
 (killed, out of memory, hard time limit, lost machine). The job is re-queued while it has
 attempts left, ends ``timed_out`` (history kept) when the attempt had run for its whole time
 limit, and ``failed``/``worker_lost`` after the attempt cap. Queued jobs left untouched for long
-are made due again (their message may have died with a broker), and so is a queued job held by
-the local pool of a server that is gone (its process no longer exists, or it stopped renewing
-its hold). After the database was unreachable, leases and holds get one lease period of grace:
-workers could not renew them either. Every change is a conditional update, so several API
-processes can sweep the same database. Failures are logged once per streak, then at growing
-intervals (:mod:`app.failure_log`).
+are made due again (their message may have died with a broker). A sent queued job that no
+queue message carries any more (its worker died while taking it) is sent again within about a
+lease (:mod:`app.lost_messages`), and so is a queued job held by the local pool of a server that
+is gone (its process no longer exists, or it stopped renewing its hold). After the database was
+unreachable, leases and holds get one lease period of grace: workers could not renew them
+either. Every change is a conditional update, so several API processes can sweep the same
+database. Failures are logged once per streak, then at growing intervals (:mod:`app.failure_log`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from app.dispatch import Dispatcher
 from app.dispatch.fair import fair_priority
 from app.dispatch.local import holder_is_gone
 from app.failure_log import FailureLog
+from app.lost_messages import LostMessages, confirm_interval_s
 from app.settings import Settings
 from app.storage import repository
 from app.storage.models import JobStatus, utcnow
@@ -48,6 +50,7 @@ class SweepReport:
     worker_lost: list[str] = field(default_factory=list)
     cancelled: list[str] = field(default_factory=list)
     resent: list[str] = field(default_factory=list)
+    lost_messages: list[str] = field(default_factory=list)
     taken_over: list[str] = field(default_factory=list)
 
 
@@ -58,11 +61,13 @@ def sweep_once(
     now: datetime | None = None,
     on_end: EndNotice | None = None,
     lapse_checks: bool = True,
+    lost: LostMessages | None = None,
     send_failures: FailureLog | None = None,
 ) -> SweepReport:
     """Handle every lapsed running job and lapsed pool hold (unless ``lapse_checks`` is off:
     the grace after a database outage), take over the queued jobs of a server that is gone,
-    make stale queued jobs due, then relay every due job; returns what changed."""
+    make stale queued jobs due, and those ``lost`` finds without a message, then relay every
+    due job; returns what changed."""
     now = now or utcnow()
     report = SweepReport()
     if lapse_checks:
@@ -78,6 +83,8 @@ def sweep_once(
             stale = repository.claim_stale_queued(session, now, settings.requeue_queued_after_s)
         for job_id in stale:
             log.warning("job %s: still queued; sending it again", job_id)
+    if lost is not None:
+        report.lost_messages.extend(lost.check(database, dispatcher))
     report.resent.extend(relay_once(database, dispatcher, settings, now, send_failures))
     return report
 
@@ -157,7 +164,7 @@ def relay_once(
         if not _send(dispatcher, job_id, limits, fair_priority(database, job_id), failures):
             continue
         with database.session() as session:
-            repository.mark_dispatched(session, job_id)
+            repository.mark_dispatched(session, job_id, now)
         sent.append(job_id)
     if sent:
         log.info("relay sent %d queued job(s)", len(sent))
@@ -202,6 +209,7 @@ class Sweeper:
         self._thread = threading.Thread(target=self._run, name="trajopt-sweeper", daemon=True)
         self._failures = FailureLog(log, "sweeper")
         self._send_failures = FailureLog(log, "relay")
+        self._lost = LostMessages(confirm_interval_s(settings.lease_s))
         self._grace_until = 0.0
 
     def start(self) -> None:
@@ -226,6 +234,7 @@ class Sweeper:
                         *self._args,
                         on_end=self._on_end,
                         lapse_checks=now >= self._grace_until,
+                        lost=self._lost,
                         send_failures=self._send_failures,
                     )
                 else:

@@ -28,7 +28,7 @@ import signal
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
@@ -266,6 +266,10 @@ class LocalDispatcher:
             self._executor = self._new_executor()
         broken.shutdown(wait=False, cancel_futures=True)
         self.resubmit_unfinished()
+
+    def carried(self, job_ids: Collection[str]) -> set[str] | None:
+        """Not known here: the jobs this pool holds are marked held in the database."""
+        return None
 
     def ping(self) -> str | None:
         """``None`` while the pool accepts work and has the solver loaded."""

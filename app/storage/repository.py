@@ -685,12 +685,47 @@ def dispatch_rank(session: Session, job_id: str) -> int:
     return int(ahead)
 
 
-def mark_dispatched(session: Session, job_id: str) -> bool:
-    """Record that a queued job's message was handed to the queue (its outbox entry is done)."""
+def mark_dispatched(session: Session, job_id: str, now: datetime | None = None) -> bool:
+    """Record that a queued job's message was handed to the queue (its outbox entry is done);
+    ``updated_at`` becomes the send's mark (see :func:`resend_lost`)."""
     stmt = (
         update(Job)
         .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
-        .values(dispatch_due_at=None)
+        .values(dispatch_due_at=None, updated_at=now or utcnow())
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def sent_queued_jobs(session: Session, limit: int = 1000) -> list[tuple[str, datetime]]:
+    """Queued jobs marked sent to the broker (not due, held by no local pool), oldest send
+    first, each with its send's mark (``updated_at``)."""
+    rows = session.execute(
+        select(Job.id, Job.updated_at)
+        .where(
+            Job.status == JobStatus.QUEUED.value,
+            Job.dispatch_due_at.is_(None),
+            Job.lease_holder.is_(None),
+        )
+        .order_by(Job.updated_at)
+        .limit(limit)
+    ).all()
+    return [(str(job_id), mark) for job_id, mark in rows]
+
+
+def resend_lost(session: Session, job_id: str, mark: datetime, now: datetime) -> bool:
+    """Make a sent queued job due again (its message is lost), only if it is still queued
+    and unchanged since the send marked ``mark``; True if it was."""
+    stmt = (
+        update(Job)
+        .where(
+            Job.id == job_id,
+            Job.status == JobStatus.QUEUED.value,
+            Job.dispatch_due_at.is_(None),
+            Job.lease_holder.is_(None),
+            Job.updated_at == mark,
+        )
+        .values(dispatch_due_at=now, updated_at=now)
         .execution_options(**_NO_SYNC)
     )
     return _rowcount(session.execute(stmt)) == 1
