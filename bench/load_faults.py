@@ -64,6 +64,8 @@ STRANDED_S = 30.0
 """No queued job may be stranded (unsent, or carried by no message) longer than this after the
 recovery."""
 STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
+LOST_RE = re.compile(r"job [0-9a-f-]{36}: sent, still queued, and no queue message carries it")
+"""The API's line for a job whose queue message was lost and that it sends again."""
 
 
 def _percentile(values: list[float], q: float) -> float:
@@ -350,6 +352,9 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
         worker_logs = "\n".join(
             p.log.read_text(errors="replace") for p in processes if "worker" in p.log.name
         )
+        api_logs = "\n".join(
+            p.log.read_text(errors="replace") for p in processes if "api" in p.log.name
+        )
         stored: dict[str, int] = {}
         for match in STORED_RE.finditer(worker_logs):
             stored[match.group(1)] = stored.get(match.group(1), 0) + 1
@@ -381,6 +386,7 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
             "not_terminal_within_bound": {j: why.get(j, "terminal late") for j in overdue},
             "not_terminal_at_the_end": {j: why.get(j, "?") for j in database["not_terminal"]},
             "near_limit_job": _job_row(direct_url, victim) if victim else None,
+            "lost_messages_resent": len(LOST_RE.findall(api_logs)),
             "wall_s": wall,
             "status_reads": len(reads),
             "status_read_p50_ms": 1e3 * statistics.median(reads),
@@ -443,7 +449,8 @@ def main(argv: list[str] | None = None) -> int:
     problems = _broken_guarantees(report, args)
     db = report["database"]
     print("PASS" if not problems else "FAIL", f"- {report['accepted']} accepted, "
-          f"{sum(db['statuses'].values())} terminal {db['statuses']}, "
+          f"{sum(n for k, n in db['statuses'].items() if k in TERMINAL)} terminal "
+          f"{db['statuses']}, "
           f"p95 status read {report['status_read_p95_ms']:.1f} ms")  # fmt: skip
     for problem in problems:
         print(f"  {problem}")
