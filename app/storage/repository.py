@@ -477,17 +477,6 @@ def record_progress(
     return _rowcount(session.execute(stmt)) == 1
 
 
-def mark_queued_progress(session: Session, job_id: str, progress: dict[str, Any]) -> bool:
-    """Give a queued job a progress note (what it waits for); its claim clears it."""
-    stmt = (
-        update(Job)
-        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
-        .values(progress=progress, updated_at=utcnow())
-        .execution_options(**_NO_SYNC)
-    )
-    return _rowcount(session.execute(stmt)) == 1
-
-
 def renew_lease(session: Session, job_id: str, attempt: int, lease_s: float) -> bool:
     """Heartbeat: push the running attempt's lease ``lease_s`` ahead; False if not ours."""
     stmt = (
