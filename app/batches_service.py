@@ -123,8 +123,9 @@ def plan_children(
     resolve: Callable[[Submission], Submission] = lambda submission: submission,
 ) -> list[repository.NewJob]:
     """The validated children of ``request`` as jobs to store (owner left empty); a 422
-    naming every bad child (index, parameters, field) otherwise. ``resolve`` completes the
-    base's initial guess (from_job) before the children copy it."""
+    naming every bad child (index, parameters, field) otherwise. ``resolve`` completes an
+    initial guess given by ``from_job`` (the base's, or one a child's parameters set) with
+    that job's trajectory, as for a single job; a job not the caller's is a 404."""
     from worker.solver.methods import check_support  # the solver's registry, loaded on use
 
     size = batch_size(request)
@@ -145,12 +146,13 @@ def plan_children(
             422, "over_server_cap", issue.message, field=issue.field, issues=[issue.model_dump()]
         )
     try:
-        base = resolve(resolve_submission(request.base))
+        base = resolve_submission(request.base)
+        resolve(base)  # the base's own from_job, refused here at "base"
     except ApiError as exc:
         if exc.status == 404:  # the base's from_job is not the caller's
             raise
         raise invalid(_prefixed(_api_issues(exc), "base"), "batch") from None
-    try:
+    try:  # on the base as given: each child resolves its own from_job
         children = expand(request, base.document)
     except PointerError as exc:
         issue = FieldIssue(
@@ -162,8 +164,11 @@ def plan_children(
     for child in children:
         note = f" (child {child.index}: {json.dumps(child.parameters)})"
         try:
-            submission = resolve_submission(child.document)
+            submission = resolve(resolve_submission(child.document))
         except ApiError as exc:
+            if exc.status == 404:  # a from_job that is not the caller's
+                where = f"children[{child.index}].{exc.field}"
+                raise ApiError(404, exc.code, f"{where}: {exc.message}", field=where) from None
             issues += _prefixed(_api_issues(exc), f"children[{child.index}]", note)
             continue
         problems = cap_issues(submission.problem, settings) + list(
@@ -214,7 +219,7 @@ def submit_batch(
     try:
         request = _parse(body)
         children = plan_children(
-            request, settings, functools.partial(resolve_initial_guess, database, owner)
+            request, settings, functools.partial(resolve_initial_guess, database, owner, known={})
         )
     except ApiError:
         if quota is not None:

@@ -285,35 +285,51 @@ def _submit(
     return job_view(job, settings), False
 
 
-def resolve_initial_guess(database: Database, owner: str, submission: Submission) -> Submission:
+def resolve_initial_guess(
+    database: Database,
+    owner: str,
+    submission: Submission,
+    known: dict[str, dict[str, list[float]]] | None = None,
+) -> Submission:
     """A submission whose ``initial_guess.from_job`` names one of the owner's finished jobs
     with a trajectory, with that trajectory copied into the guess (the stored problem then
     carries it; a later change of that job changes nothing). 404 for a job that is not the
-    owner's, 422 for one without a usable trajectory."""
+    owner's, 422 for one without a usable trajectory. ``known``: trajectories already read,
+    by job id (a batch reads each job once for all its children)."""
     guess = submission.problem.initial_guess
     if guess is None or guess.from_job is None or guess.trajectory is not None:
         return submission
-    field = "initial_guess.from_job"
-    with database.reader() as session:
-        found = repository.get_result_text(session, guess.from_job, owner)
-    if found is None:
-        raise ApiError(404, "job_not_found", f"no job {guess.from_job!r}", field=field)
-    result = json.loads(found.result_json) if found.result_json is not None else {}
-    columns = guess_columns(result.get("trajectory") or {})
+    columns = known.get(guess.from_job) if known is not None else None
     if columns is None:
-        issue = FieldIssue(
-            field=field,
-            message=f"job {guess.from_job} ({found.status}) has no complete trajectory to "
-            "start from",
-            code="no_trajectory",
-        )
-        raise invalid([issue])
+        columns = _guess_trajectory(database, owner, guess.from_job)
+        if known is not None:
+            known[guess.from_job] = columns
     document = {
         **submission.document,
         "initial_guess": {"from_job": guess.from_job, "trajectory": columns},
     }
     resolved = resolve_submission(document)  # a scenario job keeps its scenario and patches
     return dataclasses.replace(resolved, scenario=submission.scenario, patches=submission.patches)
+
+
+def _guess_trajectory(database: Database, owner: str, job_id: str) -> dict[str, list[float]]:
+    """The trajectory columns of the owner's job ``job_id`` a guess takes (404 if the job is
+    not the owner's, 422 without a complete trajectory)."""
+    field = "initial_guess.from_job"
+    with database.reader() as session:
+        found = repository.get_result_text(session, job_id, owner)
+    if found is None:
+        raise ApiError(404, "job_not_found", f"no job {job_id!r}", field=field)
+    result = json.loads(found.result_json) if found.result_json is not None else {}
+    columns = guess_columns(result.get("trajectory") or {})
+    if columns is None:
+        issue = FieldIssue(
+            field=field,
+            message=f"job {job_id} ({found.status}) has no complete trajectory to start from",
+            code="no_trajectory",
+        )
+        raise invalid([issue])
+    return columns
 
 
 def mark_sent(database: Database, job_id: str) -> None:

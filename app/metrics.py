@@ -20,6 +20,7 @@ from prometheus_client.core import (
 from prometheus_client.registry import Collector
 
 from app.dispatch import Dispatcher
+from app.failure_log import FailureLog
 from app.render_pool import RenderPool
 from app.storage import repository
 from app.storage.session import Database
@@ -50,6 +51,7 @@ class ServiceCollector(Collector):
     def __init__(self, database: Database, dispatcher: Dispatcher) -> None:
         self._database = database
         self._dispatcher = dispatcher
+        self._failures = FailureLog(log, "metrics")
 
     def describe(self) -> list[Metric]:
         """Nothing up front, so registering does not query the database."""
@@ -62,11 +64,12 @@ class ServiceCollector(Collector):
             with self._database.reader() as session:
                 counts = repository.count_by_status(session)
                 histogram = repository.solve_time_histogram(session, SOLVE_TIME_BUCKETS_S)
-        except Exception:
-            log.warning("metrics: database query failed", exc_info=True)
+        except Exception as exc:
+            self._failures.failed(exc, "query the database", "trajopt_database_up is 0")
             up.add_metric([], 0)
             yield up
             return
+        self._failures.succeeded("the database answers again")
         up.add_metric([], 1)
         yield up
 

@@ -250,8 +250,14 @@ class Settings(BaseSettings):
 
     @property
     def max_hard_limit_s(self) -> float:
-        """The longest hard time limit any job can get: the cap plus both margins."""
-        return self.max_time_limit_s + self.soft_limit_margin_s + self.hard_limit_grace_s
+        """The longest hard time limit any job can get: the cap, both margins and the hold of
+        a finished result while the database is away (see :mod:`worker.limits`)."""
+        return (
+            self.max_time_limit_s
+            + self.soft_limit_margin_s
+            + self.hard_limit_grace_s
+            + self.result_write_retry_s
+        )
 
 
 def normalize_database_url(url: str) -> str:

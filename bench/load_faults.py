@@ -14,8 +14,11 @@ fails during the fault is retried. Once a few jobs have finished, the fault stri
 
 At the end the database must hold every accepted job (and every job stored whose answer was
 lost with the API) in a terminal state, the worker logs must show exactly one stored outcome per
-job finished by a worker, and no queued job may have waited unsent for longer than 30 s after
-the recovery (the outbox's ``dispatch_due_at``, sampled every half second).
+job finished by a worker, every job must have become terminal within ``--job-bound-s`` of its
+acceptance (a client stops waiting for one that has not, and the run fails), and no queued job
+may have been stranded for longer than 30 s after the recovery: due in the outbox and unsent,
+or marked sent with no message carrying it (none in the queue, none delivered to a live worker;
+:mod:`bench.stranded`, sampled every half second). A failing run prints why, job by job.
 
     python -m bench.load_faults                       # 200 jobs, 4 clients, 2 workers
     python -m bench.load_faults --fault api --jobs 100
@@ -36,7 +39,6 @@ import tempfile
 import threading
 import time
 import uuid
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -45,6 +47,7 @@ import httpx
 
 from bench.service_overhead import ROOT, TERMINAL, _free_port, _Process
 from bench.stack_args import add_stack_arguments
+from bench.stranded import StrandMonitor, explain
 from bench.tcp_proxy import TcpProxy
 from worker.celery_app import priority_lists
 
@@ -58,8 +61,11 @@ NEVER_CONVERGE = {
 }
 """A stop tolerance no iterate meets: a job runs until its time limit."""
 STRANDED_S = 30.0
-"""No queued job may wait unsent longer than this after the recovery."""
+"""No queued job may be stranded (unsent, or carried by no message) longer than this after the
+recovery."""
 STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
+LOST_RE = re.compile(r"job [0-9a-f-]{36}: sent, still queued, and no queue message carries it")
+"""The API's line for a job whose queue message was lost and that it sends again."""
 
 
 def _percentile(values: list[float], q: float) -> float:
@@ -71,11 +77,16 @@ def _percentile(values: list[float], q: float) -> float:
 class Client(threading.Thread):
     """One API client: submits its jobs, then polls each until terminal, timing the reads."""
 
-    def __init__(self, base_url: str, key: str, jobs: int, body: dict[str, Any]) -> None:
+    def __init__(
+        self, base_url: str, key: str, jobs: int, body: dict[str, Any], bound_s: float
+    ) -> None:
         super().__init__(daemon=True)
         self.http = httpx.Client(base_url=base_url, timeout=60, headers={"X-API-Key": key})
-        self.jobs, self.body = jobs, body
+        self.jobs, self.body, self.bound_s = jobs, body, bound_s
         self.ids: list[str] = []
+        self.accepted_at: dict[str, float] = {}
+        self.overdue: list[str] = []
+        """Jobs not terminal within ``bound_s`` of their acceptance (no longer waited for)."""
         self.read_s: list[float] = []
         self.submit_s: list[float] = []
         self.refused: dict[int, int] = {}
@@ -101,6 +112,7 @@ class Client(threading.Thread):
             self.submit_s.append(time.perf_counter() - start)
             if response.status_code == 202:
                 self.ids.append(response.json()["id"])
+                self.accepted_at[self.ids[-1]] = time.monotonic()
             else:  # 429/503 are allowed answers under load: wait as told and retry
                 self.refused[response.status_code] = self.refused.get(response.status_code, 0) + 1
                 time.sleep(float(response.headers.get("retry-after", "1")))
@@ -125,6 +137,8 @@ class Client(threading.Thread):
                 status = response.json()["status"]
                 if status in TERMINAL:
                     self.final[job_id] = status
+                elif time.monotonic() - self.accepted_at[job_id] > self.bound_s:
+                    self.overdue.append(job_id)  # reported with why at the end
                 else:
                     still.append(job_id)
             pending = still
@@ -197,36 +211,6 @@ def _check_database(database_url: str, ids: list[str]) -> dict[str, Any]:
     }
 
 
-class UnsentMonitor(threading.Thread):
-    """Samples, from the recovery on, how long any queued job has been due but unsent."""
-
-    def __init__(self, database_url: str, since: datetime) -> None:
-        super().__init__(daemon=True)
-        self.url, self.since = database_url, since
-        self.max_unsent_s = 0.0
-        self.samples = 0
-        self._done = threading.Event()
-
-    def run(self) -> None:
-        import psycopg
-
-        with psycopg.connect(self.url, autocommit=True) as conn:
-            while not self._done.wait(0.5):
-                row = conn.execute(
-                    "SELECT max(extract(epoch FROM now() - greatest(dispatch_due_at, %s))) "
-                    "FROM jobs WHERE status = 'queued' AND dispatch_due_at IS NOT NULL",
-                    (self.since,),
-                ).fetchone()
-                self.samples += 1
-                if row is not None and row[0] is not None:
-                    self.max_unsent_s = max(self.max_unsent_s, float(row[0]))
-
-    def stop(self) -> None:
-        """Stop sampling."""
-        self._done.set()
-        self.join(timeout=5)
-
-
 def _through(proxy: TcpProxy, url: str) -> str:
     from sqlalchemy import make_url
 
@@ -290,7 +274,7 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
                   "stop_tolerance": NEVER_CONVERGE}  # fmt: skip
     body = {"scenario": args.scenario, "method": method}
     victim: str | None = None
-    monitor: UnsentMonitor | None = None
+    monitor: StrandMonitor | None = None
     try:
         keys = [_create_key(env, f"client-{i}") for i in range(args.clients)]
         port = _free_port()
@@ -305,7 +289,9 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
         base_url = f"http://127.0.0.1:{port}"
         share = [args.jobs // args.clients + (i < args.jobs % args.clients)
                  for i in range(args.clients)]  # fmt: skip
-        clients = [Client(base_url, k, n, body) for k, n in zip(keys, share, strict=True)]
+        clients = [
+            Client(base_url, k, n, body, args.job_bound_s) for k, n in zip(keys, share, strict=True)
+        ]
         start = time.perf_counter()
         for c in clients:
             c.start()
@@ -346,7 +332,10 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
                     time.sleep(args.outage_s)
                     proxy.restore()
                 recovered_at = time.perf_counter() - start
-                monitor = UnsentMonitor(direct_url, datetime.now(UTC))
+                monitor = StrandMonitor(
+                    direct_url, args.redis_url, env["TRAJOPT_QUEUE_NAME"], args.lease_s,
+                    STRANDED_S,
+                )  # fmt: skip
                 monitor.start()
             time.sleep(0.2)
         wall = time.perf_counter() - start
@@ -357,8 +346,14 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
                 raise RuntimeError(f"a client failed: {c.error!r}")
         ids = [job_id for c in clients for job_id in c.ids]
         database = _check_database(direct_url, ids)
+        overdue = [job_id for c in clients for job_id in c.overdue]
+        unfinished = sorted(set(overdue) | set(database["not_terminal"]))
+        why = explain(direct_url, args.redis_url, env["TRAJOPT_QUEUE_NAME"], unfinished)
         worker_logs = "\n".join(
             p.log.read_text(errors="replace") for p in processes if "worker" in p.log.name
+        )
+        api_logs = "\n".join(
+            p.log.read_text(errors="replace") for p in processes if "api" in p.log.name
         )
         stored: dict[str, int] = {}
         for match in STORED_RE.finditer(worker_logs):
@@ -385,8 +380,13 @@ def run(args: argparse.Namespace, logs: Path) -> dict[str, Any]:
             "failed_requests": sum(c.failed_requests for c in clients),
             "fault_at_s": fault_at,
             "recovered_at_s": recovered_at,
-            "max_unsent_after_recovery_s": monitor.max_unsent_s if monitor else None,
+            "max_stranded_after_recovery_s": monitor.max_stranded_s if monitor else None,
+            "stranded_over_bound": monitor.over_bound if monitor else {},
+            "job_bound_s": args.job_bound_s,
+            "not_terminal_within_bound": {j: why.get(j, "terminal late") for j in overdue},
+            "not_terminal_at_the_end": {j: why.get(j, "?") for j in database["not_terminal"]},
             "near_limit_job": _job_row(direct_url, victim) if victim else None,
+            "lost_messages_resent": len(LOST_RE.findall(api_logs)),
             "wall_s": wall,
             "status_reads": len(reads),
             "status_read_p50_ms": 1e3 * statistics.median(reads),
@@ -436,6 +436,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--outage-s", type=float, default=20.0,
                         help="how long the database is unreachable (--fault database)")  # fmt: skip
     parser.add_argument("--lease-s", type=float, default=10.0)
+    parser.add_argument("--job-bound-s", type=float, default=300.0,
+                        help="every job must be terminal this long after its acceptance; the "
+                        "clients stop waiting for one that is not, and the run fails")  # fmt: skip
     add_stack_arguments(parser, redis_db=12)
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="trajopt-load-") as tmp:
@@ -443,24 +446,42 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps(report, indent=2))
     if args.output:
         args.output.write_text(json.dumps(report, indent=2) + "\n")
+    problems = _broken_guarantees(report, args)
     db = report["database"]
-    unsent = report["max_unsent_after_recovery_s"]
-    ok = (
-        report["accepted"] == args.jobs == report["distinct_ids"]
-        and db["rows"] >= args.jobs  # more: stored, but the answer died with the API
-        and not db["not_terminal"]
-        and report["jobs_stored_twice_or_more"] == 0
-        and db["succeeded_without_result"] == 0
-        and (unsent is None or unsent <= STRANDED_S)
-    )
+    print("PASS" if not problems else "FAIL", f"- {report['accepted']} accepted, "
+          f"{sum(n for k, n in db['statuses'].items() if k in TERMINAL)} terminal "
+          f"{db['statuses']}, "
+          f"p95 status read {report['status_read_p95_ms']:.1f} ms")  # fmt: skip
+    for problem in problems:
+        print(f"  {problem}")
+    return 0 if not problems else 1
+
+
+def _broken_guarantees(report: dict[str, Any], args: argparse.Namespace) -> list[str]:
+    """One line per guarantee the run broke (job by job where it is about jobs)."""
+    db = report["database"]
+    problems: list[str] = []
+    if not report["accepted"] == args.jobs == report["distinct_ids"]:
+        problems.append(f"{report['accepted']} accepted, {report['distinct_ids']} distinct ids")
+    if db["rows"] < args.jobs:  # more: stored, but the answer died with the API
+        problems.append(f"only {db['rows']} rows in the database")
+    for job_id, why in report["not_terminal_within_bound"].items():
+        problems.append(f"job {job_id} not terminal within {args.job_bound_s:g} s: {why}")
+    for job_id, why in report["not_terminal_at_the_end"].items():
+        problems.append(f"job {job_id} not terminal at the end: {why}")
+    for job_id, why in report["stranded_over_bound"].items():
+        problems.append(f"job {job_id} stranded after the recovery: {why}")
+    if report["jobs_stored_twice_or_more"]:
+        problems.append(f"{report['jobs_stored_twice_or_more']} job(s) stored twice or more")
+    if db["succeeded_without_result"]:
+        problems.append(f"{db['succeeded_without_result']} succeeded job(s) without a result")
     near = report["near_limit_job"]
     if args.fault == "near-limit":  # retried, and ended by its own limit, not the sweeper's
-        ok = ok and near is not None and near["attempts"] == 2
-        ok = ok and "stopped answering" not in str(near["error_message"])
-    print("PASS" if ok else "FAIL", f"- {report['accepted']} accepted, "
-          f"{sum(db['statuses'].values())} terminal {db['statuses']}, "
-          f"p95 status read {report['status_read_p95_ms']:.1f} ms")  # fmt: skip
-    return 0 if ok else 1
+        if near is None or near["attempts"] != 2:
+            problems.append(f"the near-limit victim did not get exactly 2 attempts: {near}")
+        elif "stopped answering" in str(near["error_message"]):
+            problems.append(f"the near-limit victim was ended by the sweeper: {near}")
+    return problems
 
 
 if __name__ == "__main__":

@@ -19,6 +19,16 @@ PRIORITY_LEVELS = 10
 ``queue:N`` for N, and workers pop the lowest non-empty level first."""
 
 
+CLAIM_RETRY_MAX_S = 10
+"""Longest back-off of a task that could not claim its job (the database unreachable): its
+message is held, delivered, for at most this long before the task runs again."""
+UNACKED_KEY = "unacked"
+UNACKED_INDEX_KEY = "unacked_index"
+"""kombu's Redis keys of the messages delivered to a worker and not yet acknowledged: a hash
+of delivery tag -> ``[message, exchange, routing key]`` and a sorted set of delivery tag ->
+delivery time (kombu's defaults, which this configuration keeps)."""
+
+
 def priority_lists(queue: str) -> list[str]:
     """The Redis lists holding ``queue``'s messages, highest priority first."""
     return [queue, *(f"{queue}:{level}" for level in range(1, PRIORITY_LEVELS))]

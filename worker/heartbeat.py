@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import threading
 
+from app.failure_log import FailureLog
 from app.storage import repository
 from app.storage.session import Database
 
@@ -49,15 +50,17 @@ class Heartbeat:
 
     def _run(self) -> None:
         interval = self._lease_s / 3.0
+        failures = FailureLog(log, f"job {self._job_id}")
         while not self._stop.wait(interval):
             try:
                 with self._database.autocommit() as session:  # one fenced UPDATE
                     owned = repository.renew_lease(
                         session, self._job_id, self._attempt, self._lease_s
                     )
-            except Exception:  # a missed renewal is retried at the next tick
-                log.warning("job %s: lease renewal failed", self._job_id, exc_info=True)
+            except Exception as exc:  # a missed renewal is retried at the next tick
+                failures.failed(exc, "renew its lease", f"retrying every {interval:.1f} s")
                 continue
+            failures.succeeded("lease renewed again")
             if not owned:
                 self.lost = True
                 return

@@ -15,6 +15,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from app.failure_log import FailureLog
 from app.schemas.result import json_ready
 from app.settings import Settings, get_settings
 from app.storage import repository
@@ -23,6 +24,7 @@ from app.storage.repository import ClaimState
 from app.storage.session import Database, database_unreachable, get_database
 from worker.heartbeat import Heartbeat
 from worker.limits import TimeLimits, job_time_limits
+from worker.watchdog import SolveWatchdog
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +67,11 @@ class _Attempt:
     after a write that failed: it may or may not have been committed)."""
     origin: dict[str, Any] | None = None
     """A scenario job's scenario and patches, for its result's provenance."""
+    failures: FailureLog = field(init=False)
+    """The attempt's failed database writes and reads, logged with back-off."""
+
+    def __post_init__(self) -> None:
+        self.failures = FailureLog(log, f"job {self.job_id}")
 
     def elapsed(self) -> float:
         return time.monotonic() - self.started
@@ -81,10 +88,11 @@ class _Attempt:
                 self.stop_requested = True
         except self.passthrough:
             raise
-        except Exception:
+        except Exception as exc:
             self.write_errors += 1
-            log.exception("job %s: could not store %s", self.job_id, what)
+            self.failures.failed(exc, f"store {what}", "the solve goes on")
             return False
+        self.failures.succeeded("the database answers again")
         if self.notify is not None:
             self.notify(self.job_id, kind)
         return owned
@@ -133,8 +141,8 @@ class _Attempt:
                 self.stop_requested = repository.should_stop(session, self.job_id, self.attempt)
         except self.passthrough:
             raise
-        except Exception:
-            log.exception("job %s: could not read the cancel flag", self.job_id)
+        except Exception as exc:
+            self.failures.failed(exc, "read the cancel flag", "the solve goes on")
         return self.stop_requested
 
 
@@ -229,27 +237,29 @@ def _finish(attempt: _Attempt, outcome: Outcome) -> str | None:
         return cancelled.status if _store(session, attempt, cancelled) else None
 
 
-def _finish_despite_outages(attempt: _Attempt, outcome: Outcome, retry_s: float) -> str | None:
-    """:func:`_finish`, retried while the database is unreachable for up to ``retry_s``: a
-    finished result is kept in this process and written when the database returns."""
-    deadline = time.monotonic() + retry_s
+def _finish_despite_outages(attempt: _Attempt, outcome: Outcome, hold_until: float) -> str | None:
+    """:func:`_finish`, retried while the database is unreachable, until the monotonic instant
+    ``hold_until``: a finished result is kept in this process and written when the database
+    returns. Retries back off from 0.5 to 5 s; the log gets one line per streak and then lines
+    at growing intervals (:class:`FailureLog`)."""
     pause = 0.5
     while True:
         try:
-            return _finish(attempt, outcome)
+            stored = _finish(attempt, outcome)
         except Exception as exc:
-            if not database_unreachable(exc) or time.monotonic() + pause > deadline:
+            if not database_unreachable(exc) or time.monotonic() + pause > hold_until:
                 raise
-            log.warning(
-                "job %s: the database is unreachable; keeping the %s result and retrying in "
-                "%.1f s (%s)",
-                attempt.job_id,
-                outcome.status,
-                pause,
-                type(exc).__name__,
+            attempt.failures.failed(
+                exc,
+                f"store its {outcome.status} outcome",
+                f"the database is unreachable; keeping the {outcome.status} result and "
+                f"retrying for up to {max(0.0, hold_until - time.monotonic()):.0f} s",
             )
             time.sleep(pause)
             pause = min(2.0 * pause, 5.0)
+            continue
+        attempt.failures.succeeded("the database answers again")
+        return stored
 
 
 def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
@@ -359,13 +369,15 @@ def execute_job(
     solve: SolveFn | None = None,
     timeout_exceptions: tuple[type[BaseException], ...] = (),
     notify: NotifyFn | None = None,
+    kill_stuck_solve: bool = False,
 ) -> str:
     """Run job ``job_id`` once and return its final status (or why it did not run).
 
     Safe to call for any delivery: a finished or unknown job is left alone, the attempt counter
     is incremented atomically, and after ``max_attempts`` the job ends ``failed``/``worker_lost``.
     ``timeout_exceptions`` are raised into the solve by a supervisor's soft time limit; they end
-    the job as ``timed_out`` with the history collected so far.
+    the job as ``timed_out`` with the history collected so far. With ``kill_stuck_solve`` (a
+    Celery pool process) a solve still running at the job's ``stuck_s`` ends the process.
     """
     settings = settings or get_settings()
     database = get_database(settings.effective_database_url)
@@ -394,15 +406,25 @@ def execute_job(
     log.info("job %s: attempt %d started", job_id, claim.attempt)
     attempt.heartbeat = Heartbeat(database, job_id, claim.attempt, settings.lease_s)
     attempt.heartbeat.start()
+    watchdog = SolveWatchdog(attempt.limits.stuck_s if kill_stuck_solve else 0.0)
     try:
-        if solve is None:  # the real solver: its kernels first (a stand-in needs none)
-            _load_solver(attempt)
-        outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
+        watchdog.arm()
         try:
-            stored = _finish_despite_outages(attempt, outcome, settings.result_write_retry_s)
+            if solve is None:  # the real solver: its kernels first (a stand-in needs none)
+                _load_solver(attempt)
+            outcome = _solve(attempt, problem_raw, solve or _default_solve(), timeout_exceptions)
+        finally:
+            watchdog.disarm()
+        # the hold of the finished result is inside the hard limit (worker.limits), not the
+        # watchdog's: a short job keeps its result through the whole hold
+        hold_until = time.monotonic() + settings.result_write_retry_s
+        try:
+            stored = _finish_despite_outages(attempt, outcome, hold_until)
         except timeout_exceptions:  # a soft limit fires once: the second write is not interrupted
-            stored = _finish_despite_outages(attempt, outcome, settings.result_write_retry_s)
+            watchdog.disarm()
+            stored = _finish_despite_outages(attempt, outcome, hold_until)
     finally:
+        watchdog.disarm()
         attempt.heartbeat.stop(wait=False)
     if notify is not None:  # first: the streams' end waits for nothing else
         notify(job_id, "end")

@@ -1,7 +1,10 @@
 """Per-job time limits: the job's own option, capped by the server, plus the Celery margins.
 
 The solver stops itself at ``solve_s``; the Celery soft limit (``soft_s``) is a backstop for a
-single conic solve that never returns, and the hard limit (``hard_s``) kills the process.
+single conic solve that never returns; a solve that ignores even that is ended at ``stuck_s``
+by the worker's watchdog (:mod:`worker.watchdog`). Celery's hard limit (``hard_s``) kills the
+process: it adds the time an attempt may hold its finished result while the database is away
+(``result_write_retry_s``), so a short job's held result is not lost to it.
 """
 
 from __future__ import annotations
@@ -17,8 +20,13 @@ class TimeLimits:
     """Deadlines of one job in seconds from its start."""
 
     solve_s: float
+    """The solver stops itself (the job's own time limit)."""
     soft_s: float
+    """Celery raises its soft limit into a solve still running."""
+    stuck_s: float
+    """The worker's watchdog ends the process of a solve still running."""
     hard_s: float
+    """Celery kills the process: ``stuck_s`` plus the hold of a finished result."""
 
 
 def requested_time_limit(problem: dict[str, Any]) -> float | None:
@@ -39,7 +47,9 @@ def job_time_limits(problem: dict[str, Any], settings: Settings) -> TimeLimits:
         settings.max_time_limit_s,
     )
     soft_s = solve_s + settings.soft_limit_margin_s
-    return TimeLimits(solve_s=solve_s, soft_s=soft_s, hard_s=soft_s + settings.hard_limit_grace_s)
+    stuck_s = soft_s + settings.hard_limit_grace_s
+    hard_s = stuck_s + settings.result_write_retry_s
+    return TimeLimits(solve_s=solve_s, soft_s=soft_s, stuck_s=stuck_s, hard_s=hard_s)
 
 
 def check_visibility_timeout(settings: Settings) -> None:
@@ -48,6 +58,7 @@ def check_visibility_timeout(settings: Settings) -> None:
         raise ValueError(
             f"TRAJOPT_VISIBILITY_TIMEOUT_S={settings.visibility_timeout_s:g} must exceed the "
             f"longest hard time limit {settings.max_hard_limit_s:g} s "
-            "(max_time_limit_s + soft_limit_margin_s + hard_limit_grace_s); otherwise Redis "
+            "(max_time_limit_s + soft_limit_margin_s + hard_limit_grace_s + "
+            "result_write_retry_s); otherwise Redis "
             "would hand a still-running job to a second worker"
         )

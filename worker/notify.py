@@ -11,6 +11,8 @@ import os
 
 import redis
 
+from app.failure_log import FailureLog
+
 log = logging.getLogger(__name__)
 
 CHANNEL_PREFIX = "trajopt:job:"
@@ -28,6 +30,7 @@ class RedisNotifier:
         self._url = url
         self._client: redis.Redis | None = None
         self._pid = 0
+        self._failures = FailureLog(log, "event notices")
 
     def _redis(self) -> redis.Redis:
         if self._client is None or self._pid != os.getpid():
@@ -39,5 +42,7 @@ class RedisNotifier:
         """Publish ``kind`` for ``job_id``; failures are logged, never raised."""
         try:
             self._redis().publish(channel_for(job_id), kind)
-        except redis.RedisError:
-            log.warning("could not publish %s notice of job %s", kind, job_id, exc_info=True)
+        except redis.RedisError as exc:
+            self._failures.failed(exc, f"publish the {kind} notice of job {job_id}", "skipped")
+            return
+        self._failures.succeeded("published again")

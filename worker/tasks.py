@@ -8,7 +8,7 @@ from celery.exceptions import SoftTimeLimitExceeded
 from sqlalchemy.exc import InterfaceError, OperationalError
 
 from app.settings import get_settings
-from worker.celery_app import TASK_NAME, app
+from worker.celery_app import CLAIM_RETRY_MAX_S, TASK_NAME, app
 from worker.jobs import execute_job
 from worker.notify import RedisNotifier
 from worker.solver import api as _solver_api  # noqa: F401  (loaded once, before the pool forks)
@@ -29,7 +29,7 @@ def _notifier(url: str) -> RedisNotifier:
     ignore_result=True,
     autoretry_for=(OperationalError, InterfaceError),
     retry_backoff=1,
-    retry_backoff_max=10,
+    retry_backoff_max=CLAIM_RETRY_MAX_S,
     max_retries=None,
 )
 def solve_job(job_id: str) -> str:
@@ -45,4 +45,5 @@ def solve_job(job_id: str) -> str:
         settings=settings,
         timeout_exceptions=(SoftTimeLimitExceeded,),
         notify=_notifier(settings.broker_url),
+        kill_stuck_solve=True,
     )

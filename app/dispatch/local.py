@@ -7,6 +7,12 @@ is known to be gone (a process of this host that no longer exists held their lea
 the queue, and queued jobs are dispatched; a job another live server or worker runs is never
 taken: if that process dies, its lease lapses and the sweeper re-queues it. A pool broken by a
 dying child is rebuilt the same way.
+
+A queued job handed to this pool is *held* by this server (``lease_holder`` is the server's
+``host/pid``, ``lease_expires_at`` a hold renewed every third of ``TRAJOPT_LEASE_S``): another
+server on the same database leaves it alone while the hold is renewed, and takes it over (its
+sweeper makes it due, its relay sends it to its own pool) once this server's process is gone or
+its hold lapsed, as it does with a running job whose lease lapsed.
 """
 
 from __future__ import annotations
@@ -24,14 +30,15 @@ import signal
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 from app.dispatch.fair import fair_priority
+from app.failure_log import FailureLog
 from app.settings import Settings
 from app.storage import repository
-from app.storage.models import JobStatus
+from app.storage.models import process_identity, utcnow
 from app.storage.session import get_database
 from worker.limits import TimeLimits
 from worker.solver import FIRST_COMPILE
@@ -125,6 +132,12 @@ class LocalDispatcher:
 
     def __init__(self, settings: Settings) -> None:
         self._settings = settings
+        self.holder = process_identity()
+        """``host/pid`` of this server: the holder of the queued jobs its pool holds."""
+        self._stop_holding = threading.Event()
+        self._holds = threading.Thread(
+            target=self._renew_holds, name="trajopt-pool-holds", daemon=True
+        )
         self.on_done: Callable[[str], None] | None = None
         """Called with the job id when a job's process returns (from a pool thread)."""
         self._lock = threading.Lock()
@@ -167,45 +180,80 @@ class LocalDispatcher:
         """Start the pool and dispatch the stored jobs that wait for a process."""
         with self._lock:
             self._executor = self._new_executor()
+        self._holds.start()
         self.resubmit_unfinished()
 
     def resubmit_unfinished(self) -> None:
-        """Re-queue the running jobs whose process is gone, then dispatch every queued job.
+        """Re-queue the running jobs whose process is gone, then take every queued job no live
+        server's pool holds (unheld, held here, or held by a server gone or silent) into this
+        pool.
 
-        A job queued here and also in another server's pool runs once: the first delivery claims
-        it and the other finds it busy or finished.
+        A job queued here and also in another server's pool (a hold taken over from a server
+        that was only slow) runs once: the first delivery claims it and the other finds it
+        busy or finished.
         """
         database = get_database(self._settings.effective_database_url)
         with database.session() as session:
             released = repository.release_dead_holders(session, holder_is_gone)
-            job_ids = repository.active_job_ids(session, [JobStatus.QUEUED.value])
+            job_ids = repository.take_queued(
+                session, self.holder, self._settings.lease_s, holder_is_gone
+            )
         if released:
             log.info("%d interrupted job(s) put back in the queue", len(released))
+        with self._lock:
+            waiting = {entry[2] for entry in self._waiting}
         for job_id in job_ids:
+            if job_id in waiting:
+                continue
             log.info("dispatching unfinished job %s", job_id)
-            self.submit(job_id, TimeLimits(0, 0, 0), fair_priority(database, job_id))
+            self._enqueue(job_id, fair_priority(database, job_id))
 
     def submit(self, job_id: str, limits: TimeLimits, priority: int = 0) -> None:
-        """Queue the job (limits are applied inside ``execute_job``): it goes to the pool when
-        a process is free, lowest ``priority`` first, then oldest. While the pool still loads
-        the solver, the queued job's progress says so (phase ``compiling`` when it compiles
-        the kernels, else ``loading``)."""
+        """Hold the job for this server's pool and queue it (limits are applied inside
+        ``execute_job``): it goes to the pool when a process is free, lowest ``priority``
+        first, then oldest. While the pool still loads the solver, the queued job's progress
+        says so (phase ``compiling`` when it compiles the kernels, else ``loading``)."""
+        with self._lock:
+            if self._executor is None or self._closed:
+                raise RuntimeError("the local job pool is not running")
+            warming = not any(f.done() for f in self._warming)
+        database = get_database(self._settings.effective_database_url)
+        with database.session() as session:
+            repository.hold_queued(
+                session,
+                job_id,
+                self.holder,
+                self._settings.lease_s,
+                {"phase": WAIT_PHASE[self._kernel_state()]} if warming else None,
+            )
+        self._enqueue(job_id, priority)
+
+    def _enqueue(self, job_id: str, priority: int) -> None:
+        """Put the job in the waiting heap and feed the pool."""
         with self._lock:
             if self._executor is None or self._closed:
                 raise RuntimeError("the local job pool is not running")
             heapq.heappush(self._waiting, (priority, next(self._arrivals), job_id))
-            warming = not any(f.done() for f in self._warming)
         self._feed()
-        if warming:
-            phase = WAIT_PHASE[self._kernel_state()]
-            database = get_database(self._settings.effective_database_url)
-            with database.session() as session:
-                repository.mark_queued_progress(session, job_id, {"phase": phase})
 
     def _kernel_state(self) -> int:
         """What the pool's processes do before they take jobs (UNKNOWN, LOADING, COMPILING)."""
         flag = self._kernels
         return int(flag.value) if flag is not None else UNKNOWN
+
+    def _renew_holds(self) -> None:
+        """Renew the holds of the queued jobs this pool holds, every third of the lease."""
+        interval = self._settings.lease_s / 3.0
+        database = get_database(self._settings.effective_database_url)
+        failures = FailureLog(log, "local pool")
+        while not self._stop_holding.wait(interval):
+            try:
+                with database.autocommit() as session:  # one UPDATE
+                    repository.renew_holds(session, self.holder, self._settings.lease_s)
+            except Exception as exc:  # retried at the next tick
+                failures.failed(exc, "renew the holds of its queued jobs", "retrying")
+                continue
+            failures.succeeded("holds renewed again")
 
     def _feed(self) -> None:
         """Hand waiting jobs to the pool while it has a free process."""
@@ -252,6 +300,10 @@ class LocalDispatcher:
         broken.shutdown(wait=False, cancel_futures=True)
         self.resubmit_unfinished()
 
+    def carried(self, job_ids: Collection[str]) -> set[str] | None:
+        """Not known here: the jobs this pool holds are marked held in the database."""
+        return None
+
     def ping(self) -> str | None:
         """``None`` while the pool accepts work and has the solver loaded."""
         with self._lock:
@@ -278,6 +330,9 @@ class LocalDispatcher:
             executor, self._executor = self._executor, None
         if executor is None:
             return
+        self._stop_holding.set()
+        if self._holds.is_alive():
+            self._holds.join(timeout=STOP_JOIN_TIMEOUT_S)
         processes = list((getattr(executor, "_processes", None) or {}).values())
         for process in processes:  # an interrupted solve keeps nothing worth a graceful stop
             if process.is_alive():
@@ -295,8 +350,14 @@ class LocalDispatcher:
             database = get_database(self._settings.effective_database_url)
             with database.session() as session:
                 released = repository.release_dead_holders(session, holder_is_gone, requeue=False)
-        except Exception:  # their leases lapse by themselves
+                handed_back = repository.release_holds(
+                    session, utcnow(), lambda holder: holder == self.holder, lapsed=False
+                )
+        except Exception:  # their leases and holds lapse by themselves
             log.warning("could not release the interrupted jobs", exc_info=True)
             return
         if released:
             log.info("%d interrupted job(s) released for the next sweep or start", len(released))
+        if handed_back:
+            log.info("%d queued job(s) handed back for another server or the next start",
+                     len(handed_back))  # fmt: skip

@@ -513,17 +513,6 @@ def record_progress(
     return _rowcount(session.execute(stmt)) == 1
 
 
-def mark_queued_progress(session: Session, job_id: str, progress: dict[str, Any]) -> bool:
-    """Give a queued job a progress note (what it waits for); its claim clears it."""
-    stmt = (
-        update(Job)
-        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
-        .values(progress=progress, updated_at=utcnow())
-        .execution_options(**_NO_SYNC)
-    )
-    return _rowcount(session.execute(stmt)) == 1
-
-
 def renew_lease(session: Session, job_id: str, attempt: int, lease_s: float) -> bool:
     """Heartbeat: push the running attempt's lease ``lease_s`` ahead; False if not ours."""
     stmt = (
@@ -625,12 +614,13 @@ def claim_stale_queued(
 ) -> list[str]:
     """Queued jobs untouched for ``older_than_s``, made due to be sent again (their queue
     message may have been lost with a broker); ``updated_at`` is bumped so only one sweeper
-    takes each."""
+    takes each. A job a live local pool holds (its hold renewed) waits there its turn."""
     cutoff = now - timedelta(seconds=older_than_s)
+    unheld = or_(Job.lease_holder.is_(None), Job.lease_expires_at < now)
     ids = list(
         session.execute(
             select(Job.id)
-            .where(Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff)
+            .where(Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff, unheld)
             .order_by(Job.updated_at)
             .limit(limit)
         ).scalars()
@@ -720,15 +710,157 @@ def dispatch_rank(session: Session, job_id: str) -> int:
     return int(ahead)
 
 
-def mark_dispatched(session: Session, job_id: str) -> bool:
-    """Record that a queued job's message was handed to the queue (its outbox entry is done)."""
+def mark_dispatched(session: Session, job_id: str, now: datetime | None = None) -> bool:
+    """Record that a queued job's message was handed to the queue (its outbox entry is done);
+    ``updated_at`` becomes the send's mark (see :func:`resend_lost`)."""
     stmt = (
         update(Job)
         .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
-        .values(dispatch_due_at=None)
+        .values(dispatch_due_at=None, updated_at=now or utcnow())
         .execution_options(**_NO_SYNC)
     )
     return _rowcount(session.execute(stmt)) == 1
+
+
+def sent_queued_jobs(session: Session, limit: int = 1000) -> list[tuple[str, datetime]]:
+    """Queued jobs marked sent to the broker (not due, held by no local pool), oldest send
+    first, each with its send's mark (``updated_at``)."""
+    rows = session.execute(
+        select(Job.id, Job.updated_at)
+        .where(
+            Job.status == JobStatus.QUEUED.value,
+            Job.dispatch_due_at.is_(None),
+            Job.lease_holder.is_(None),
+        )
+        .order_by(Job.updated_at)
+        .limit(limit)
+    ).all()
+    return [(str(job_id), mark) for job_id, mark in rows]
+
+
+def resend_lost(session: Session, job_id: str, mark: datetime, now: datetime) -> bool:
+    """Make a sent queued job due again (its message is lost), only if it is still queued
+    and unchanged since the send marked ``mark``; True if it was."""
+    stmt = (
+        update(Job)
+        .where(
+            Job.id == job_id,
+            Job.status == JobStatus.QUEUED.value,
+            Job.dispatch_due_at.is_(None),
+            Job.lease_holder.is_(None),
+            Job.updated_at == mark,
+        )
+        .values(dispatch_due_at=now, updated_at=now)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def hold_queued(
+    session: Session,
+    job_id: str,
+    holder: str,
+    hold_s: float,
+    progress: dict[str, Any] | None = None,
+) -> bool:
+    """Record that the local pool of the server ``holder`` (``host/pid``) holds a queued job,
+    for ``hold_s`` unless renewed (:func:`renew_holds`); with ``progress`` as its note."""
+    now = utcnow()
+    values: dict[str, Any] = {
+        "lease_holder": holder,
+        "lease_expires_at": now + timedelta(seconds=hold_s),
+    }
+    if progress is not None:
+        values.update(progress=progress, updated_at=now)
+    stmt = (
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
+        .values(**values)
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt)) == 1
+
+
+def renew_holds(session: Session, holder: str, hold_s: float) -> int:
+    """Push ahead the holds of every queued job ``holder``'s pool holds; how many."""
+    stmt = (
+        update(Job)
+        .where(Job.status == JobStatus.QUEUED.value, Job.lease_holder == holder)
+        .values(lease_expires_at=utcnow() + timedelta(seconds=hold_s))
+        .execution_options(**_NO_SYNC)
+    )
+    return _rowcount(session.execute(stmt))
+
+
+def release_holds(
+    session: Session,
+    now: datetime,
+    is_gone: Callable[[str], bool],
+    *,
+    lapsed: bool = True,
+) -> list[str]:
+    """Free the queued jobs held by a pool whose server ``is_gone`` (or, with ``lapsed``,
+    whose hold was not renewed in time) and make them due now, for the relay of any server to
+    send; returns their ids. Each change is fenced by the holder and the hold seen."""
+    rows = session.execute(
+        select(Job.id, Job.lease_holder, Job.lease_expires_at).where(
+            Job.status == JobStatus.QUEUED.value, Job.lease_holder.is_not(None)
+        )
+    ).all()
+    released: list[str] = []
+    for job_id, holder, until in rows:
+        expired = lapsed and (until is None or until < now)
+        if not (expired or is_gone(str(holder))):
+            continue
+        held = Job.lease_expires_at.is_(None) if until is None else Job.lease_expires_at == until
+        stmt = (
+            update(Job)
+            .where(
+                Job.id == job_id,
+                Job.status == JobStatus.QUEUED.value,
+                Job.lease_holder == holder,
+                held,
+            )
+            .values(lease_holder=None, lease_expires_at=None, dispatch_due_at=now, updated_at=now)
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            released.append(str(job_id))
+    return released
+
+
+def take_queued(
+    session: Session, holder: str, hold_s: float, is_gone: Callable[[str], bool]
+) -> list[str]:
+    """Queued jobs free for ``holder``'s pool, oldest first, each now held by it: those held by
+    no pool, by this one, or by a pool whose server is gone or whose hold lapsed (never one a
+    live server holds). Their outbox entries are closed: the pool is their queue."""
+    now = utcnow()
+    rows = session.execute(
+        select(Job.id, Job.lease_holder, Job.lease_expires_at)
+        .where(Job.status == JobStatus.QUEUED.value)
+        .order_by(Job.created_at, Job.id)
+    ).all()
+    taken: list[str] = []
+    for job_id, held_by, until in rows:
+        held_elsewhere = held_by is not None and held_by != holder
+        if held_elsewhere and until is not None and until >= now and not is_gone(str(held_by)):
+            continue  # another live server's pool holds it
+        same = Job.lease_holder.is_(None) if held_by is None else Job.lease_holder == held_by
+        stmt = (
+            update(Job)
+            .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value, same)
+            .values(
+                lease_holder=holder,
+                lease_expires_at=now + timedelta(seconds=hold_s),
+                dispatch_due_at=None,
+                updated_at=now,
+            )
+            .execution_options(**_NO_SYNC)
+        )
+        if _rowcount(session.execute(stmt)) == 1:
+            taken.append(str(job_id))
+    return taken
 
 
 def claim_due_dispatches(

@@ -5,6 +5,8 @@ stops is taken over by the other one within a sweep.
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -91,3 +93,52 @@ def test_a_second_server_never_takes_a_live_job(
         assert "no longer owns the job" not in log
         assert "Traceback" not in log
         assert "leaked semaphore" not in log
+
+
+def test_a_killed_servers_queued_and_running_jobs_are_taken_over_within_a_lease(
+    tmp_path: Path,
+) -> None:
+    """``kill -9`` of a server whose pool holds one running job and two queued ones: the
+    other server on the same data folder takes the queued ones over at once (the holder's
+    process is gone) and the running one once its lease lapses; neither waits for the
+    stale-queued resend."""
+    lease_s = 5.0
+    env = service_free_env(
+        TRAJOPT_DATA_DIR=str(tmp_path),
+        TRAJOPT_SWEEP_INTERVAL_S="1",
+        TRAJOPT_LEASE_S=str(lease_s),
+        TRAJOPT_LOCAL_WORKERS="1",
+    )
+    first, second = ApiServer(env, tmp_path / "first.log"), ApiServer(env, tmp_path / "second.log")
+    first.start_and_wait()
+    second.start_and_wait()
+    client, other = first.client(), second.client()
+    try:
+        running = client.submit(long_job(SCENARIO))["id"]
+        client.wait_for(running, _iterating, 60, "first iteration")
+        small = {"scenario": SCENARIO, "method": {"nodes": 41, "max_iterations": 8}}
+        queued = [client.submit(small)["id"] for _ in range(2)]
+        time.sleep(2.0)  # the live first server keeps them: its pool is busy
+        assert [other.job(j)["status"] for j in queued] == ["queued", "queued"]
+        assert first.process is not None
+        os.kill(first.process.pid, signal.SIGKILL)
+        first.process.wait(timeout=10)  # reaped, as its service manager would
+        killed = time.monotonic()
+        for job_id in queued:
+            done = other.wait_finished(job_id, timeout=60)
+            assert done["attempts"] == 1
+        assert time.monotonic() - killed < lease_s + 15
+        taken = other.wait_for(
+            running, lambda j: j["attempts"] == 2 and _iterating(j), 60, "second attempt"
+        )
+        assert taken["status"] == "running"
+        assert time.monotonic() - killed < 2 * lease_s + 20
+        other.http.delete(f"/v1/jobs/{running}")
+        assert other.wait_finished(running, timeout=30)["status"] == "cancelled"
+    finally:
+        other.close()
+        client.close()
+        second.stop()
+        first.stop()
+    assert "taking it over" in second.log_text()
+    assert "Traceback" not in second.log_text()

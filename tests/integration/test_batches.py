@@ -11,6 +11,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+import psycopg
 import pytest
 
 from tests.integration.conftest import celery_worker
@@ -158,3 +159,41 @@ def test_cancelling_a_batch_stops_its_children(client: ServiceClient) -> None:
     assert done["status"] == "cancelled" and done["counts"] == {"cancelled": 4}
     rows = client.http.get(f"/v1/batches/{batch['id']}/summary").json()["rows"]
     assert {row["failure_code"] for row in rows} == {"cancelled"}
+
+
+def test_a_grid_child_starts_from_the_callers_own_job_as_a_single_job_does(
+    api: ApiServer, stack_env: dict[str, str], client: ServiceClient, scenario: str
+) -> None:
+    """``initial_guess.from_job`` set by a grid parameter: the caller's own finished job is
+    accepted and its trajectory copied into the child (as for a single job); another
+    client's job is a 404 naming the child."""
+    source = client.wait_finished(client.submit({"scenario": scenario})["id"])
+    assert source["status"] == "succeeded"
+    grid = {
+        "parameters": [
+            {"path": "/initial_guess", "values": [{"from_job": source["id"]}]},
+            {"path": "/method/max_iterations", "values": [20, 30]},
+        ]
+    }
+    body = {"base": {"scenario": scenario}, "grid": grid}
+    answer = client.http.post("/v1/batches", json=body)
+    assert answer.status_code == 202, answer.text
+    done = _wait_batch(client, answer.json()["id"])
+    assert done["counts"] == {"succeeded": 2}, done
+    rows = client.http.get(f"/v1/batches/{answer.json()['id']}/summary").json()["rows"]
+    with psycopg.connect(stack_env["DATABASE_URL"]) as conn:
+        for row in rows:
+            guess = conn.execute(
+                "SELECT problem->'initial_guess' FROM jobs WHERE id = %s", (row["job_id"],)
+            ).fetchone()[0]
+            assert guess["from_job"] == source["id"]
+            assert len(guess["trajectory"]["time_s"]) > 2  # copied from the source job
+
+    other = ServiceClient(api.base_url, create_api_key(stack_env, "grid-guess-other"))
+    try:
+        refused = other.http.post("/v1/batches", json=body)
+        assert refused.status_code == 404, refused.text
+        assert refused.json()["error"]["field"] == "children[0].initial_guess.from_job"
+        assert other.http.get("/v1/batches").json()["total"] == 0
+    finally:
+        other.close()

@@ -2,12 +2,14 @@
 a Redis restart, against real PostgreSQL and Redis. Each test asserts counts: every accepted job
 ends terminal, each finished job stored exactly one outcome, and none is left queued or running.
 
-The deployment here uses short leases (2 s, swept every 0.5 s) and short Celery margins so lost
-workers are noticed in seconds rather than the production defaults' tens of seconds.
+The deployment here uses short leases (2 s, swept every 0.5 s), short Celery margins and a short
+hold of a finished result (4 s) so lost workers are noticed, and a frozen one killed, in seconds
+rather than the production defaults' tens of seconds or minutes.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -21,6 +23,7 @@ from typing import Any
 
 import psycopg
 import pytest
+import redis
 from celery import Celery
 
 from tests.integration.conftest import PgSchemas
@@ -35,7 +38,7 @@ from tests.integration.harness import (
     free_port,
     long_job,
 )
-from worker.celery_app import TASK_NAME
+from worker.celery_app import TASK_NAME, priority_lists
 
 pytestmark = pytest.mark.slow
 
@@ -45,9 +48,12 @@ FAULT_SETTINGS = {
     "TRAJOPT_SOFT_LIMIT_MARGIN_S": "1",
     "TRAJOPT_HARD_LIMIT_GRACE_S": "1",
     "TRAJOPT_MAX_ATTEMPTS": "3",
+    "TRAJOPT_RESULT_WRITE_RETRY_S": "4",
 }
 SMALL = {"scenario": SCENARIO, "method": {"nodes": 41, "max_iterations": 8}}
 """A job of about a second; it ends succeeded or failed, both terminal."""
+UNACKED_KEY, UNACKED_INDEX_KEY = "unacked", "unacked_index"
+"""kombu's Redis keys of the messages delivered to a worker and not yet acknowledged."""
 STORED_RE = re.compile(r"job ([0-9a-f-]{36}): attempt (\d+) stored outcome (\w+)")
 
 
@@ -286,18 +292,78 @@ def test_duplicate_deliveries_run_one_solve_and_store_one_result(
     celery.close()
 
 
+def _sent(database_url: str, job_id: str) -> bool:
+    """Whether the job is queued, never started and marked sent (its outbox entry closed)."""
+    with psycopg.connect(database_url) as conn:
+        row = conn.execute(
+            "SELECT status, attempts, dispatch_due_at IS NULL FROM jobs WHERE id = %s", (job_id,)
+        ).fetchone()
+    return row == ("queued", 0, True)
+
+
+def _take_message(env: dict[str, str], job_id: str) -> bytes:
+    """Remove the job's message from the queue's lists and return it (raw)."""
+    client = redis.Redis.from_url(env["REDIS_URL"])
+    try:
+        for name in priority_lists(env["TRAJOPT_QUEUE_NAME"]):
+            for raw in client.lrange(name, 0, -1):
+                if job_id.encode() in raw and client.lrem(name, 1, raw) == 1:
+                    return bytes(raw)
+    finally:
+        client.close()
+    raise AssertionError(f"no message of job {job_id} in the queue")
+
+
+def test_a_job_whose_message_a_dying_worker_took_is_sent_again_within_a_lease(
+    fault_env: dict[str, str], fault_client: ServiceClient, workers: Workers
+) -> None:
+    """What a worker killed while taking a message leaves behind, made without a kill race:
+    a job queued, marked sent, never started, whose message is nowhere (popped from the list,
+    never recorded as delivered), and one whose message was recorded as delivered a minute
+    ago by a worker that never claimed the job. The API sends both again within about a
+    lease, and a late copy of a message (a duplicate delivery) changes nothing."""
+    db = fault_env["DATABASE_URL"]
+    popped, recorded = (fault_client.submit(SMALL)["id"] for _ in range(2))
+    for job_id in (popped, recorded):
+        wait_for_row(db, job_id, lambda r, j=job_id: _sent(db, j), 30)
+    lost = _take_message(fault_env, popped)
+    delivered = json.loads(_take_message(fault_env, recorded))
+    tag = f"lost-{uuid.uuid4().hex}"
+    broker = redis.Redis.from_url(fault_env["REDIS_URL"])
+    broker.hset(UNACKED_KEY, tag, json.dumps([delivered, "", fault_env["TRAJOPT_QUEUE_NAME"]]))
+    broker.zadd(UNACKED_INDEX_KEY, {tag: time.time() - 60.0})
+    try:
+        workers.start()
+        ready = time.monotonic()
+        found = wait_all_terminal(db, [popped, recorded], timeout=30)
+        assert time.monotonic() - ready < 3 * float(FAULT_SETTINGS["TRAJOPT_LEASE_S"]) + 10
+        assert {row["attempts"] for row in found.values()} == {1}
+        assert_counts(found, [popped, recorded], workers)
+        broker.lpush(fault_env["TRAJOPT_QUEUE_NAME"], lost)  # the lost message, late
+        deadline = time.monotonic() + 30
+        while f"job {popped} not run: finished" not in workers.log_text():
+            assert time.monotonic() < deadline, workers.log_text()[-3000:]
+            time.sleep(0.2)
+        assert rows(db, [popped, recorded]) == found
+    finally:
+        broker.hdel(UNACKED_KEY, tag)
+        broker.zrem(UNACKED_INDEX_KEY, tag)
+        broker.close()
+
+
 def test_the_hard_time_limit_ends_a_runaway_solve_and_the_worker_goes_on(
     fault_env: dict[str, str], fault_client: ServiceClient, workers: Workers
 ) -> None:
     db = fault_env["DATABASE_URL"]
     worker = workers.start()
     body = long_job(SCENARIO)
-    body["method"]["time_limit_s"] = 3.0  # soft limit 4 s, hard limit 5 s in this deployment
+    body["method"]["time_limit_s"] = 3.0  # soft limit 4 s, hard limit 9 s in this deployment
     runaway = fault_client.submit(body)["id"]
     wait_for_row(db, runaway, running_with_progress, 60)
     # Stopped at 1.8 s of its 3 s: it never returns and ignores signals. Its lease (2 s) lapses
-    # long before the hard limit kills it; it had run 1.8 s, under its limit, so it is re-queued
-    # (only the time an attempt ran counts), and its second attempt ends at its own limit.
+    # long before the hard limit (the limit, both margins and the 4 s result hold: 9 s) kills
+    # it; it had run 1.8 s, under its limit, so it is re-queued (only the time an attempt ran
+    # counts), and its second attempt ends at its own limit.
     while _running_for(db, runaway) < 1.8:
         time.sleep(0.05)
     stopped = kill_children(worker, signal.SIGSTOP)

@@ -8,6 +8,7 @@ shared PostgreSQL server keeps running for other tests.
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import threading
@@ -38,9 +39,11 @@ from tests.integration.test_faults import (
     FAULT_SETTINGS,
     SMALL,
     Workers,
+    _running_for,
     assert_counts,
     kill_children,
     rows,
+    running_with_progress,
     wait_all_terminal,
     wait_for_row,
 )
@@ -70,6 +73,7 @@ def outage_env(
     env["DATABASE_URL"] = direct.set(port=proxy.port).render_as_string(hide_password=False)
     env["TRAJOPT_QUEUE_NAME"] = f"trajopt-outage-{uuid.uuid4().hex[:10]}"
     env["TRAJOPT_RELAY_INTERVAL_S"] = "0.5"
+    env["TRAJOPT_RESULT_WRITE_RETRY_S"] = "60"  # a finished result outlives a 15 s outage
     env["DIRECT_DATABASE_URL"] = direct.render_as_string(hide_password=False)
     yield env
     forget_queue(env["REDIS_URL"], env["TRAJOPT_QUEUE_NAME"])
@@ -209,3 +213,78 @@ def test_a_worker_lost_near_its_time_limit_is_retried(
         assert done["status"] in TERMINAL
     finally:
         client.close()
+
+
+def test_a_result_held_through_an_outage_outlives_the_jobs_hard_time_limit(
+    outage_env: dict[str, str],
+    outage_api: ApiServer,
+    outage_workers: Workers,
+    proxy: TcpProxy,
+) -> None:
+    """A job with a 10 s time limit: a solve still running at 12 s (the limit and both 1 s
+    margins) is killed, but this one finishes in a few seconds while the database is away, and
+    its worker keeps the result past those 12 s until the database is back, at 18 s: one
+    attempt, its outcome stored (``succeeded``; ``timed_out`` by its own limit on a machine
+    too busy to solve it in 10 s)."""
+    outage_workers.start()
+    client = outage_api.client()
+    try:
+        job = client.submit({"scenario": SCENARIO, "method": {"time_limit_s": 10}})["id"]
+        wait_for_row(_direct(outage_env), job, lambda r: r["status"] == "running", 60)
+        started = time.monotonic() - _running_for(_direct(outage_env), job)
+        proxy.cut()
+        time.sleep(max(0.0, started + 18.0 - time.monotonic()))
+        proxy.restore()
+        found = wait_all_terminal(_direct(outage_env), [job], timeout=60)
+        assert found[job]["attempts"] == 1, found
+        assert found[job]["status"] in ("succeeded", "timed_out") and found[job]["result"]
+        assert_counts(found, [job], outage_workers)
+        log = outage_workers.log_text()
+        assert f"keeping the {found[job]['status']} result" in log
+        assert "Hard time limit" not in log and "exited with 'signal" not in log
+    finally:
+        client.close()
+
+
+def test_a_worker_logs_a_database_outage_in_a_few_lines(
+    outage_env: dict[str, str],
+    outage_api: ApiServer,
+    outage_workers: Workers,
+    proxy: TcpProxy,
+) -> None:
+    """A job iterating through an 8 s outage: its worker logs the first failure of each loop
+    (the attempt's writes and reads, its lease heartbeat) with a traceback, then one line at
+    growing intervals, and one when the database answers again; not a traceback per retry."""
+    worker = outage_workers.start()
+    client = outage_api.client()
+    try:
+        job = client.submit(long_job(SCENARIO))["id"]
+        wait_for_row(_direct(outage_env), job, running_with_progress, 60)
+        before = rows(_direct(outage_env), [job])[job]["history"]
+        proxy.cut()
+        time.sleep(8.0)
+        proxy.restore()
+        wait_for_row(_direct(outage_env), job, lambda r: r["history"] > before + 20, 60)
+        assert client.http.delete(f"/v1/jobs/{job}").status_code == 202
+        wait_all_terminal(_direct(outage_env), [job], timeout=60)
+    finally:
+        client.close()
+    log = worker.log_text()
+    lines = [line for line in log.splitlines() if f"job {job}:" in line]
+    failing = [line for line in lines if "could not" in line or "still failing" in line]
+    iterations = rows(_direct(outage_env), [job])[job]["history"]
+    assert iterations > before + 20  # it iterated through the outage: many retries
+    assert 2 <= len(failing) <= 16, failing
+    assert _logged_tracebacks(log) <= 2, log[-4000:]
+    assert any("answers again" in line or "renewed again" in line for line in lines)
+
+
+def _logged_tracebacks(log: str) -> int:
+    """How many log records carry a traceback (a chained exception prints several
+    ``Traceback`` headers under one record)."""
+    lines = log.splitlines()
+    return sum(
+        1
+        for previous, line in itertools.pairwise(lines)
+        if line.startswith("Traceback") and previous.startswith("[")
+    )

@@ -137,3 +137,48 @@ def test_a_finished_job_refuses_a_later_cancel(database: Database, settings: Set
     with database.session() as s:
         job = repository.request_cancel(s, job_id, "o")
     assert job is not None and job.status == "succeeded"
+
+
+def test_a_queued_job_held_by_a_gone_or_silent_server_is_released_and_sent_again(
+    database: Database, dead_pid: int, settings: Settings
+) -> None:
+    """A queued job handed to a server's pool is held by that server; the sweeper of any
+    server frees it once that server's process is gone or its hold lapsed, never while the
+    hold is renewed."""
+    live, gone, silent, elsewhere = (_new(database) for _ in range(4))
+    with database.session() as s:
+        assert repository.hold_queued(s, live, process_identity(), 60.0)
+        assert repository.hold_queued(s, gone, process_identity(dead_pid), 60.0)
+        assert repository.hold_queued(s, silent, "another-host/1", 0.5)
+        assert repository.hold_queued(s, elsewhere, "another-host/2", 60.0)
+        for job_id in (live, gone, silent, elsewhere):
+            repository.mark_dispatched(s, job_id)
+    dispatcher = RecordingDispatcher()
+    report = sweep_once(database, dispatcher, settings, now=utcnow() + timedelta(seconds=1))
+    assert sorted(report.taken_over) == sorted([gone, silent])
+    assert sorted(j for j, _ in dispatcher.submitted) == sorted([gone, silent])
+    assert [_job(database, j).lease_holder for j in (live, elsewhere)] == [
+        process_identity(),
+        "another-host/2",
+    ]
+    with database.session() as s:  # a renewed hold keeps its job past its first expiry
+        assert repository.renew_holds(s, "another-host/2", 3600.0) == 1
+    later = utcnow() + timedelta(seconds=120)
+    assert sweep_once(database, dispatcher, settings, now=later).taken_over == [live]
+    assert _job(database, elsewhere).lease_holder == "another-host/2"
+
+
+def test_a_starting_pool_takes_only_the_queued_jobs_no_live_server_holds(
+    database: Database, dead_pid: int
+) -> None:
+    free, mine, gone, lapsed, held = (_new(database) for _ in range(5))
+    with database.session() as s:
+        repository.hold_queued(s, mine, "me/1", 60.0)
+        repository.hold_queued(s, gone, process_identity(dead_pid), 60.0)
+        repository.hold_queued(s, lapsed, "another-host/1", -1.0)
+        repository.hold_queued(s, held, "another-host/2", 60.0)
+        taken = repository.take_queued(s, "me/1", 30.0, holder_is_gone)
+    assert taken == [free, mine, gone, lapsed]
+    assert {_job(database, j).lease_holder for j in taken} == {"me/1"}
+    assert _job(database, held).lease_holder == "another-host/2"
+    assert all(_job(database, j).dispatch_due_at is None for j in taken)

@@ -40,6 +40,9 @@ class RecordingDispatcher:
         self.submitted.append((job_id, limits))
         self.priorities.append(priority)
 
+    def carried(self, job_ids: object) -> set[str] | None:
+        return None
+
     def ping(self) -> str | None:
         return None
 

@@ -44,12 +44,17 @@ def test_database_url_driver(given: str, expected: str) -> None:
 
 def test_time_limits_follow_the_job_and_are_capped() -> None:
     settings = Settings(
-        max_time_limit_s=100, default_time_limit_s=50, soft_limit_margin_s=5, hard_limit_grace_s=10
+        max_time_limit_s=100,
+        default_time_limit_s=50,
+        soft_limit_margin_s=5,
+        hard_limit_grace_s=10,
+        result_write_retry_s=200,
     )
     own = job_time_limits({"method": {"time_limit_s": 20}}, settings)
-    assert (own.solve_s, own.soft_s, own.hard_s) == (20, 25, 35)
+    assert (own.solve_s, own.soft_s, own.stuck_s, own.hard_s) == (20, 25, 35, 235)
     capped = job_time_limits({"method": {"time_limit_s": 1000}}, settings)
-    assert (capped.solve_s, capped.soft_s, capped.hard_s) == (100, 105, 115)
+    assert (capped.solve_s, capped.soft_s, capped.stuck_s, capped.hard_s) == (100, 105, 115, 315)
+    assert capped.hard_s == settings.max_hard_limit_s  # the result's hold is inside the limit
     default = job_time_limits({"method": {}}, settings)
     assert default.solve_s == 50
     assert requested_time_limit({"method": {"time_limit_s": True}}) is None
