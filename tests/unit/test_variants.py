@@ -6,7 +6,7 @@ own discretization and convergence error, not the reference's. A variant must ei
 within the band and be verified feasible, or fail with a named reason: a ``succeeded`` outside
 the band is a wrong answer. Variants in ``REQUIRED`` meet the acceptance today and must keep
 meeting it; those in ``KNOWN_WRONG`` succeed with a wrong answer today and are strict expected
-failures until that is fixed. The 400-node variants (``BENCH_ONLY``) run in
+failures until that is fixed. The slowest variants (``BENCH_ONLY``: 400 nodes, hp-scp's two) run in
 ``python -m bench.variants`` only.
 """
 

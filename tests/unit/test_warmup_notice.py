@@ -84,3 +84,18 @@ def test_a_fresh_process_reads_the_cache_state_without_compiling(tmp_path: Path)
     assert _cached_in(None) == "True"
     assert _cached_in(tmp_path) == "False"
     assert [p for p in tmp_path.rglob("*") if p.is_file()] == []
+
+
+def test_quiet_keeps_the_compile_notice_and_drops_the_slow_load_notice(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A minute of compiling is said even with --quiet (silence would read as a hang); a slow
+    load from the cache is progress chatter that --quiet leaves out."""
+    from worker.solver.cli import _kernels_notice
+
+    _kernels_notice("loading", quiet=True)
+    assert capsys.readouterr().err == ""
+    _kernels_notice("loading")
+    assert "loading the solver's compiled kernels" in capsys.readouterr().err
+    _kernels_notice("compiling", quiet=True)
+    assert "compiling the solver's kernels" in capsys.readouterr().err

@@ -9,6 +9,7 @@ invalid document), checked before any work starts.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
@@ -201,14 +202,17 @@ def scenario_table(scenarios: Sequence[Scenario]) -> list[str]:
     return lines
 
 
-def _kernels_notice(wait: str) -> None:
+def _kernels_notice(wait: str, *, quiet: bool = False) -> None:
     """Say on stderr why the solve waits before its first iteration: the first after an install
-    compiles the solver's kernels; a load from numba's cache is said only when it is slow."""
+    compiles the solver's kernels (said even with --quiet: a minute's silence reads as a hang);
+    a load from numba's cache is said only when it is slow, and not with --quiet."""
     if wait == "compiling":
         line = (
             f"compiling the solver's kernels: once after an install, {FIRST_COMPILE} "
             "(python -m worker.solver.warmup does it ahead of time)"
         )
+    elif quiet:
+        return
     else:
         line = "loading the solver's compiled kernels from numba's cache"
     print(line, file=sys.stderr, flush=True)
@@ -320,7 +324,9 @@ def _solve(args: argparse.Namespace, csv_table: CsvTable | None) -> int:
     from worker.solver.api import solve_problem
 
     result = solve_problem(
-        doc, on_iteration=None if args.quiet else _progress, on_kernels=_kernels_notice
+        doc,
+        on_iteration=None if args.quiet else _progress,
+        on_kernels=functools.partial(_kernels_notice, quiet=args.quiet),
     )
     code = 0 if result["status"] == "succeeded" else 1
     print(_summary(result), flush=True)
