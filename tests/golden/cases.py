@@ -28,9 +28,15 @@ VOLATILE_KEYS = frozenset(
         "conic_solver_setup_s",
         "iteration_wall_s",
         "discretization_s",
+        "time_limit_s",
     }
 )
-"""Wall-clock figures and the environment: not outputs of the arithmetic."""
+"""Wall-clock figures and the environment: not outputs of the arithmetic. A case's time limits
+are set far above its solve (``UNHURRIED_S``) so that only its iteration and evaluation budgets
+end it: a limit a busy machine could reach would make the recording a measure of the load."""
+
+UNHURRIED_S = 3600.0
+"""The time limit of every case and of its global search: never reached."""
 
 INPUT_KEYS = frozenset({"software", "problem_sha256", "warnings"})
 """What a result says of its input and its software (this project's version and revision, the
@@ -81,19 +87,24 @@ def cases() -> dict[str, dict[str, Any]]:
         # first SQP iterations, whose arithmetic the recording pins; the failure by budget too
         guess = {**out[skip]["method"].get("global_guess", {}), "max_evaluations": 240}
         out[skip] = _with(skip, {"max_iterations": 6, "nodes": 41, "global_guess": guess})
+    for doc in out.values():
+        method = doc.setdefault("method", {})
+        method["time_limit_s"] = UNHURRIED_S
+        if "global_guess" in method or method.get("name") == "lgl-sqp":
+            method["global_guess"] = {**method.get("global_guess", {}), "time_limit_s": UNHURRIED_S}
     return out
 
 
-def _strip(value: Any) -> Any:
+def strip(value: Any) -> Any:
     """The document without its volatile entries; non-finite floats as strings (JSON)."""
     if isinstance(value, dict):
         return {
-            k: _strip(v)
+            k: strip(v)
             for k, v in value.items()
             if k not in VOLATILE_KEYS and k not in LEFT_OUT_KEYS and k not in INPUT_KEYS
         }
     if isinstance(value, list):
-        return [_strip(v) for v in value]
+        return [strip(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
         return repr(value)
     return value
@@ -130,4 +141,4 @@ def cpu_target() -> dict[str, Any]:
 def solve(document: dict[str, Any]) -> dict[str, Any]:
     """The case's result document, stripped of what is not arithmetic (``VOLATILE_KEYS``)."""
     result = solve_problem(ProblemDocument.model_validate(document))
-    return _strip(json.loads(json.dumps(result, allow_nan=True)))
+    return strip(json.loads(json.dumps(result, allow_nan=True)))
