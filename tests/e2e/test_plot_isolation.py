@@ -39,6 +39,7 @@ def server(tmp_path: Path) -> Iterator[tuple[ApiServer, tuple[str, str]]]:
         api.stop()
 
 
+@pytest.mark.exclusive
 def test_another_clients_first_plot_and_reads_do_not_wait_for_one_clients_renders(
     server: tuple[ApiServer, tuple[str, str]],
 ) -> None:

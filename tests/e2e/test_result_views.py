@@ -110,6 +110,7 @@ def _renders(client: ServiceClient) -> float:
     raise AssertionError("no trajopt_plot_renders_total in /metrics")
 
 
+@pytest.mark.exclusive
 def test_a_batch_plot_is_kept_until_a_child_changes(embedded_client: ServiceClient) -> None:
     base = long_job(ZONE_SCENARIO)
     grid = {"parameters": [{"path": "/method/max_iterations", "values": [2, 500]}]}

@@ -152,6 +152,7 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / 100.0  # utime + stime, in clock ticks
 
 
+@pytest.mark.exclusive
 def test_reads_stay_fast_while_another_client_posts_invalid_megabytes(
     api: ApiServer, api_key: str, other_key: str
 ) -> None:

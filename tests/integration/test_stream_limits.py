@@ -194,6 +194,7 @@ def many_streams_server(stack_env: dict[str, str], tmp_path: Path) -> Iterator[A
         server.stop()
 
 
+@pytest.mark.exclusive
 def test_another_clients_reads_stay_fast_while_one_client_holds_300_streams(
     many_streams_server: ApiServer,
     stack_env: dict[str, str],
