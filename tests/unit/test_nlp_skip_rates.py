@@ -5,16 +5,15 @@ from __future__ import annotations
 
 import dataclasses
 
+import casadi as ca  # the bench extra, installed by .ci/run with the dev extra
 import numpy as np
 import pytest
 
-ca = pytest.importorskip("casadi")
-
-from app.schemas import ProblemDocument  # noqa: E402
-from bench.nlp_skip import CasadiPowered, scenario_document  # noqa: E402
-from worker.solver.atmosphere import US76Atmosphere  # noqa: E402
-from worker.solver.models.powered import powered_path_values  # noqa: E402
-from worker.solver.phased_problem import PhasedProblem, build_phased_problem  # noqa: E402
+from app.schemas import ProblemDocument
+from bench.nlp_skip import CasadiPowered, scenario_document
+from worker.solver.atmosphere import US76Atmosphere
+from worker.solver.models.powered import powered_path_values
+from worker.solver.phased_problem import PhasedProblem, build_phased_problem
 
 POINTS = 400
 
