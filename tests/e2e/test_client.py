@@ -174,9 +174,14 @@ def test_a_job_starts_from_an_earlier_job(client: TrajoptClient) -> None:
             overrides={"initial_guess": {"from_job": "4b0c3e1e-0000-4000-8000-000000000000"}},
         )
     assert unknown.value.field == "initial_guess.from_job"
+    # a job cancelled while it waits behind another (the pool runs one at a time) ends with no
+    # trajectory; one cancelled while it iterates keeps its last iterate, a usable start
+    running = client.submit(long_job(SCENARIO))
     queued = client.submit(long_job(SCENARIO))
     client.cancel(queued["id"])
-    client.wait(queued["id"], timeout_s=60)
+    client.cancel(running["id"])
+    assert client.wait(queued["id"], timeout_s=60)["status"] == "cancelled"
+    client.wait(running["id"], timeout_s=60)
     with pytest.raises(InvalidRequestError) as empty:
         client.submit_scenario(SCENARIO, overrides={"initial_guess": {"from_job": queued["id"]}})
     assert empty.value.fields == ["initial_guess.from_job"]
