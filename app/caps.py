@@ -9,7 +9,8 @@ from __future__ import annotations
 from typing import Any
 
 from app.errors import ApiError
-from app.schemas import FieldIssue, ProblemDocument
+from app.schemas import AutoOptions, FieldIssue, ProblemDocument
+from app.schemas.methods import ScpRunOptions
 from app.settings import Settings
 
 
@@ -26,33 +27,13 @@ def _over(field: str, value: Any, cap: float, setting: str, *, given: bool = Tru
 
 
 def cap_issues(problem: ProblemDocument, settings: Settings) -> list[FieldIssue]:
-    """Every field of ``problem`` over a server cap (empty when all are within)."""
-    issues: list[FieldIssue] = []
+    """Every field of ``problem`` over a server cap (empty when all are within); for auto, its
+    time limit and node count, and each method's options as auto would run them."""
     method = problem.method
-    given = method.model_fields_set
-    checks: list[tuple[str, float, float, str]] = [
-        ("method.nodes", method.nodes, settings.max_nodes, "TRAJOPT_MAX_NODES"),
-        (
-            "method.max_iterations",
-            method.max_iterations,
-            settings.max_iterations,
-            "TRAJOPT_MAX_ITERATIONS",
-        ),
-        (
-            "method.time_limit_s",
-            method.time_limit_s,
-            settings.max_time_limit_s,
-            "TRAJOPT_MAX_TIME_LIMIT_S",
-        ),
-    ]
-    for field, value, cap, setting in checks:
-        if value > cap:
-            name = field.split(".")[-1]
-            issues.append(_over(field, value, cap, setting, given=name in given))
-    for i, count in enumerate(getattr(method, "phase_nodes", None) or []):
-        if count > settings.max_nodes:
-            field = f"method.phase_nodes.{i}"
-            issues.append(_over(field, count, settings.max_nodes, "TRAJOPT_MAX_NODES"))
+    if isinstance(method, AutoOptions):
+        issues = _auto_issues(problem, method, settings)
+    else:
+        issues = _method_issues(method, settings, "method", method.model_fields_set)
     zones = len(problem.no_fly_zones)
     if zones > settings.max_no_fly_zones:
         issues.append(
@@ -73,6 +54,68 @@ def cap_issues(problem: ProblemDocument, settings: Settings) -> list[FieldIssue]
                 "TRAJOPT_MAX_WAYPOINTS",
             )
         )
+    return issues
+
+
+_CAPPED = (
+    ("nodes", "max_nodes", "TRAJOPT_MAX_NODES"),
+    ("max_iterations", "max_iterations", "TRAJOPT_MAX_ITERATIONS"),
+    ("time_limit_s", "max_time_limit_s", "TRAJOPT_MAX_TIME_LIMIT_S"),
+)
+"""Each capped option of a method: its name, the setting's attribute and its variable."""
+
+
+def _method_issues(
+    method: ScpRunOptions,
+    settings: Settings,
+    prefix: str,
+    given: set[str],
+    options: tuple[str, ...] = ("nodes", "max_iterations", "time_limit_s"),
+) -> list[FieldIssue]:
+    """``options`` of one method over a server cap (``given``: the options the user wrote)."""
+    issues: list[FieldIssue] = []
+    for name, attribute, setting in _CAPPED:
+        value, cap = getattr(method, name), getattr(settings, attribute)
+        if name in options and value > cap:
+            issues.append(_over(f"{prefix}.{name}", value, cap, setting, given=name in given))
+    for i, count in enumerate(getattr(method, "phase_nodes", None) or []):
+        if count > settings.max_nodes:
+            field = f"{prefix}.phase_nodes.{i}"
+            issues.append(_over(field, count, settings.max_nodes, "TRAJOPT_MAX_NODES"))
+    return issues
+
+
+def _auto_issues(
+    problem: ProblemDocument, auto: AutoOptions, settings: Settings
+) -> list[FieldIssue]:
+    """Auto's own budget and nodes over a cap, then the options of each method that accepts
+    the problem as auto would run it: its iterations, its nodes unless auto's ``nodes`` set
+    them, its time limit only when overridden (otherwise it is what auto's budget leaves)."""
+    from worker.solver.methods.selection import select  # the solver's registry, loaded on use
+
+    given = auto.model_fields_set
+    issues: list[FieldIssue] = []
+    if auto.time_limit_s > settings.max_time_limit_s:
+        issues.append(
+            _over(
+                "method.time_limit_s",
+                auto.time_limit_s,
+                settings.max_time_limit_s,
+                "TRAJOPT_MAX_TIME_LIMIT_S",
+                given="time_limit_s" in given,
+            )
+        )
+    if auto.nodes is not None and auto.nodes > settings.max_nodes:
+        issues.append(_over("method.nodes", auto.nodes, settings.max_nodes, "TRAJOPT_MAX_NODES"))
+    for candidate in select(problem).candidates:
+        own = set(auto.overrides.get(candidate.name, {}))
+        checked = ["max_iterations"]
+        if auto.nodes is None or "nodes" in own:
+            checked.append("nodes")
+        if "time_limit_s" in own:
+            checked.append("time_limit_s")
+        prefix = f"method.overrides.{candidate.name}"
+        issues += _method_issues(candidate.options, settings, prefix, own, tuple(checked))
     return issues
 
 

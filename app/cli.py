@@ -86,7 +86,9 @@ def _build_parser() -> argparse.ArgumentParser:
     solve = sub.add_parser("solve", help="solve a scenario or a problem file in this process")
     solve.add_argument("problem", help="a built-in scenario name or a path to a problem JSON file")
     solve.add_argument(
-        "--method", help="solution method (default: the document's, else energy-scp)"
+        "--method",
+        help="solution method (default: the document's, else auto: the methods that accept "
+        "the problem, in a documented order)",
     )
     solve.add_argument("--nodes", type=_int, help="number of discretization nodes")
     solve.add_argument("-o", "--output", help="write the result document to this JSON file")

@@ -90,6 +90,11 @@ class Progress(BaseModel):
     )
     conic_status: str | None = None
     elapsed_s: float | None = Field(None, description="Seconds from the attempt's start.")
+    method: str | None = Field(
+        None,
+        description="Only for a job whose method is auto: the method of the attempt running "
+        "now, and once finished the method whose answer the result holds.",
+    )
 
 
 class JobErrorInfo(BaseModel):
@@ -224,6 +229,17 @@ class MethodView(BaseModel):
     phases: bool = Field(False, description="Whether it solves documents with phases.")
     propulsion: bool = Field(False, description="Whether it flies a vehicle with propulsion.")
     default_options: dict[str, Any] = Field(default_factory=dict)
+    preference: int | None = Field(
+        None,
+        description="Its place in auto's order (1: tried first among those that accept a "
+        "problem); null for auto itself.",
+    )
+    capabilities: dict[str, dict[str, bool]] = Field(
+        default_factory=dict,
+        description="Its row of the capability matrix: group (final_time, angle_of_attack, "
+        "limits, atmosphere, aerodynamics, planet, flight, objectives) -> feature -> whether it "
+        "takes it, probed from its own support check (auto: whether any method takes it).",
+    )
 
 
 class ValidationReport(BaseModel):

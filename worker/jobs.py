@@ -34,8 +34,8 @@ NotifyFn = Callable[[str, str], None]
 
 
 def progress_of(record: dict[str, Any], elapsed_s: float) -> dict[str, Any]:
-    """The live-progress summary of one iteration record."""
-    return {
+    """The live-progress summary of one iteration record (with an auto attempt's method)."""
+    progress = {
         "phase": "optimizing",
         "iteration": record.get("iteration"),
         "cost": record.get("cost"),
@@ -43,6 +43,10 @@ def progress_of(record: dict[str, Any], elapsed_s: float) -> dict[str, Any]:
         "conic_status": record.get("conic_status"),
         "elapsed_s": round(elapsed_s, 6),
     }
+    extra = record.get("extra")
+    if isinstance(extra, dict) and extra.get("auto_attempt") is not None:
+        progress["method"] = extra.get("method")
+    return progress
 
 
 @dataclass
@@ -281,7 +285,9 @@ def _store(session: Any, attempt: _Attempt, outcome: Outcome) -> bool:
         "solve_s": outcome.solve_s,
     }
     elapsed = attempt.elapsed()
-    progress = progress_of(last, elapsed) if last is not None else {"iteration": 0}
+    progress: dict[str, Any] = progress_of(last, elapsed) if last is not None else {"iteration": 0}
+    if outcome.result is not None and outcome.result.get("attempts") is not None:
+        progress["method"] = outcome.result.get("method")  # auto's kept answer's method
     values["progress"] = {**progress, "phase": "finished", "elapsed_s": round(elapsed, 6)}
     unless_cancel_requested = outcome.status != JobStatus.CANCELLED
     if (

@@ -291,6 +291,16 @@ def _mass_thrust(fig: Figure, result: Result) -> None:
     fig.suptitle("Mass and thrust against time")
 
 
+def run_boundaries(history: Sequence[Mapping[str, Any]]) -> list[int]:
+    """The iterations (1-based) that begin another start of a multi-start run or another
+    attempt of auto: where the record's (attempt, start) tag changes."""
+    tags = [
+        ((r.get("extra") or {}).get("auto_attempt"), (r.get("extra") or {}).get("start"))
+        for r in history
+    ]
+    return [i + 1 for i in range(1, len(tags)) if tags[i] != tags[i - 1]]
+
+
 def _convergence(fig: Figure, result: Result) -> None:
     history = result.get("history") or []
     index = np.arange(1, len(history) + 1)
@@ -325,12 +335,11 @@ def _convergence(fig: Figure, result: Result) -> None:
     if not np.all(np.isnan(weight)):
         axes[1][1].semilogy(index, weight, marker=".")
     axes[1][1].set_ylabel("trust-region weight")
-    starts = series(lambda r: (r.get("extra") or {}).get("start"))
     for ax in axes.flat:
-        for boundary in index[1:][np.diff(starts) != 0]:
+        for boundary in run_boundaries(history):
             ax.axvline(boundary - 0.5, color="grey", linewidth=0.8, linestyle=":")
     for ax in axes[1]:
-        ax.set_xlabel("iteration (all starts in order)")
+        ax.set_xlabel("iteration (all starts and attempts in order)")
     fig.suptitle("Convergence")
 
 

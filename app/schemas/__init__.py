@@ -31,9 +31,11 @@ from app.schemas.limits import (
     MAX_WAYPOINTS,
 )
 from app.schemas.methods import (
+    AUTO,
     DEFAULT_METHOD,
     METHOD_NAMES,
     METHOD_OPTIONS,
+    AutoOptions,
     EnergyScpOptions,
     EnergyStopTolerance,
     MethodSpec,
@@ -69,6 +71,7 @@ from app.schemas.vehicle import (
 )
 
 __all__ = [
+    "AUTO",
     "DEFAULT_METHOD",
     "MAX_ITERATIONS",
     "MAX_NODES",
@@ -88,6 +91,7 @@ __all__ = [
     "AngleBounds",
     "AngleOfAttack",
     "Atmosphere",
+    "AutoOptions",
     "ConstantAngleOfAttack",
     "ControlLimits",
     "DurationBounds",

@@ -88,7 +88,7 @@ def raise_problems(title: str, problems: Sequence[FieldProblem]) -> None:
     raise ValidationError.from_exception_data(title, details)
 
 
-def _reissue(error: Any, loc: Loc) -> InitErrorDetails:
+def reissue(error: Any, loc: Loc) -> InitErrorDetails:
     """Rebuild one pydantic error at a new location, keeping its type (and context when known)."""
     error_type: str = error["type"]
     ctx = error.get("ctx")
@@ -123,7 +123,7 @@ def _strip_tag(discriminator: str) -> Callable[[Any, ValidatorFunctionWrapHandle
                 loc: Loc = tuple(error["loc"])
                 if loc and loc[0] == tag:
                     loc = loc[1:]
-                details.append(_reissue(error, loc))
+                details.append(reissue(error, loc))
             raise ValidationError.from_exception_data(exc.title, details) from None
 
     return validate

@@ -86,7 +86,9 @@ class ProblemDocument(StrictModel):
     )
     method: MethodSpec = Field(
         default_factory=default_method_options,
-        description='Solution method and its options; default {"name": "energy-scp"}.',
+        description='Solution method and its options; default {"name": "auto"}: the methods '
+        "that accept the problem tried in a documented order (docs/problem-contract.md, "
+        '"Method"); an object without name is auto\'s.',
     )
     initial_guess: InitialGuess | None = Field(
         None,

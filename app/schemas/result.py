@@ -157,6 +157,14 @@ class HistoryExtra(BaseModel):
     initial_bank_deg: Number = Field(
         None, description="Constant bank of that start's initial guess, deg."
     )
+    auto_attempt: int | None = Field(
+        None,
+        description="Only for method auto: the attempt the iteration belongs to (1-based, the "
+        "result's attempts[].attempt).",
+    )
+    method: str | None = Field(
+        None, description="Only for method auto: the method of that attempt."
+    )
 
 
 class HistoryRecord(BaseModel):
@@ -493,6 +501,24 @@ class ScenarioOrigin(_Record):
     )
 
 
+class AutoSelection(_Record):
+    """How auto chose: the methods that accept the problem in its order, why each other
+    method refused it, and why the result's method is the one kept."""
+
+    chosen: str | None = Field(
+        None, description="The method whose verified answer is kept (null: none succeeded)."
+    )
+    reason: str = Field(..., description="Why that method's answer is the result's.")
+    rule: str = Field(..., description="The rule, in one line (docs/problem-contract.md).")
+    candidates: list[str] = Field(
+        default_factory=list, description="The methods that accept the problem, in auto's order."
+    )
+    refused: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="Each method that does not accept the problem: each reason, field first.",
+    )
+
+
 class Provenance(_Record):
     """What is needed to reproduce the result: the problem's fingerprint, where it came from,
     versions, options, platform, dynamics path."""
@@ -542,6 +568,9 @@ class Provenance(_Record):
         "problem's initial_guess) instead of its own guess, or how the global search that "
         "made it went (kind global).",
     )
+    selection: AutoSelection | None = Field(
+        None, description="Only for method auto: how it chose the result's method, and why."
+    )
 
 
 class StartSummary(_Record):
@@ -557,6 +586,56 @@ class StartSummary(_Record):
     chosen: bool = Field(..., description="Whether this start's answer is the result.")
 
 
+class AutoAttempt(_Record):
+    """One method run by auto (method ``auto``): what it did and what it found."""
+
+    attempt: int = Field(..., description="1-based, in the order run.")
+    method: str = Field(..., description="The method run.")
+    purpose: Literal["answer", "cross_check"] = Field(
+        ...,
+        description="answer: tried for the answer (auto's order); cross_check: run after a "
+        "success to compare its value.",
+    )
+    status: ResultStatus = Field(..., description="How its solve ended (verified or not).")
+    failure_code: str | None = Field(None, description="Its failure code, when it failed.")
+    failure_message: str | None = Field(None, description="Its failure message (own numbering).")
+    iterations: int = Field(..., description="Its iterations (records of the history).")
+    first_iteration: int | None = Field(
+        None, description="Where its iterations start in the result's history (null: none)."
+    )
+    time_s: float = Field(..., description="Its whole solve with the verification, s.")
+    objective: Number = Field(None, description="Its objective value (objective.units).")
+    kept: bool = Field(..., description="Whether its answer is the result's.")
+    start: str | None = Field(
+        None, description="A cross-check of the same method: the other start it ran from."
+    )
+    options: dict[str, Any] = Field(
+        default_factory=dict,
+        description="The method's options as run (defaults filled in; time_limit_s what the "
+        "run had left): submit these to run that method alone.",
+    )
+
+
+class CrossCheck(_Record):
+    """Only for method auto with cross_check: the two verified values of one problem."""
+
+    attempts: list[int] = Field(..., description="The attempts compared (attempts[].attempt).")
+    methods: list[str] = Field(..., description="Their methods.")
+    values: list[Number] = Field(..., description="Their objective values (objective.units).")
+    relative_difference: Number = Field(
+        None, description="|a - b| / max(|a|, |b|) (1); null when only one value exists."
+    )
+    agree: bool | None = Field(
+        None, description="Whether they are within 0.5 % of each other (null: not compared)."
+    )
+    warning: str | None = Field(
+        None,
+        description="When they differ by more than 0.5 %: a local optimum is possible, and "
+        "which value is kept (the better).",
+    )
+    note: str | None = Field(None, description="Why no comparison was made, when none was.")
+
+
 class ResultDocument(_Record):
     """Trajectory with units, objective, verification, convergence history, timing, provenance."""
 
@@ -567,7 +646,12 @@ class ResultDocument(_Record):
         "failed, cancelled or timed_out otherwise, with failure.",
     )
     failure: Failure | None = None
-    method: str = Field(..., description="The method that solved the problem.")
+    method: str = Field(
+        ...,
+        description="The method that solved the problem; for auto, the method whose answer is "
+        "kept (or, when none succeeded, whose failure says most; provenance.selection says "
+        "why).",
+    )
     objective: ObjectiveValue | None = None
     trajectory: Trajectory | None = Field(
         None,
@@ -586,6 +670,14 @@ class ResultDocument(_Record):
         None,
         description="Each start of a multi-start run and which was kept (the best converged); "
         "absent for a single start. The history holds every start's iterations.",
+    )
+    attempts: list[AutoAttempt] | None = Field(
+        None,
+        description="Only for method auto: every method it ran, in order, with its status, "
+        "reason, iterations, time and value; the history holds each one's iterations.",
+    )
+    cross_check: CrossCheck | None = Field(
+        None, description="Only for method auto with cross_check: the two values compared."
     )
     timing: Timing
     provenance: Provenance = Field(default_factory=Provenance)

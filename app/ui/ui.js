@@ -140,6 +140,12 @@ function downloadLink(text, path, filename) {
 
 // --- the list of jobs --------------------------------------------------------------------
 
+// A job's method; for auto, the method it runs or chose ("auto → foh-ptr").
+function methodText(job) {
+  const chosen = job.progress && job.progress.method;
+  return job.method === "auto" && chosen ? `auto → ${chosen}` : job.method;
+}
+
 async function jobsPage() {
   const body = document.querySelector("#jobs tbody");
   const more = document.getElementById("more");
@@ -153,7 +159,7 @@ async function jobsPage() {
       cell.append(link);
       row.append(cell);
       row.append(el("td", job.status, { class: "status-" + job.status }));
-      row.append(el("td", job.method));
+      row.append(el("td", methodText(job)));
       row.append(el("td", job.scenario || "–"));
       row.append(el("td", job.created_at));
       row.append(el("td", fmt(job.progress ? job.progress.iteration : null)));
@@ -284,7 +290,7 @@ function showStatus(status) {
 
 function showJob(job) {
   showStatus(job.status);
-  document.getElementById("method").textContent = job.method;
+  document.getElementById("method").textContent = methodText(job);
   const progress = job.progress || {};
   document.getElementById("phase").textContent = progress.phase || "waiting";
   document.getElementById("iteration").textContent = fmt(progress.iteration);

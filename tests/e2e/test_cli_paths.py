@@ -201,6 +201,44 @@ def test_a_result_is_written_where_asked(trajopt: Trajopt, tmp_path: Path) -> No
     assert run.code == (0 if result["status"] == "succeeded" else 1)
 
 
+def test_a_problem_file_without_a_method_is_solved_by_auto(
+    trajopt: Trajopt, tmp_path: Path
+) -> None:
+    """``trajopt solve`` on a document that names no method: auto picks, the summary says which
+    and lists the attempts; a document no method accepts is refused before any work (exit 2)."""
+    from worker.solver.scenarios import get_scenario
+
+    document = dict(get_scenario("rlv-min-heat-load").problem)
+    document.pop("method")
+    (tmp_path / "p.json").write_text(json.dumps(document), encoding="utf-8")
+    run = trajopt("solve", "p.json", "--nodes", "41", "-q", "-o", "r.json")
+    assert run.code == 0, run.err
+    assert run.out.splitlines()[:3] == [
+        "status: succeeded",
+        "method: auto -> energy-scp",
+        run.out.splitlines()[2],
+    ]
+    assert run.out.splitlines()[2].startswith("  attempt 1 energy-scp (answer): succeeded, ")
+    result = json.loads((tmp_path / "r.json").read_text(encoding="utf-8"))
+    assert result["attempts"][0]["options"]["nodes"] == 41
+    document["final_time"] = {"kind": "fixed", "value_s": 1500.0}
+    document["objective"] = "min_control_effort"  # only hp-scp takes it, on a free final time
+    (tmp_path / "none.json").write_text(json.dumps(document), encoding="utf-8")
+    refused = trajopt("solve", "none.json", "-q")
+    assert refused.code == 2 and "Traceback" not in refused.err
+    lines = refused.err_lines
+    assert lines[0].startswith(
+        "error: method auto cannot solve this problem: method: no method accepts this problem"
+    )
+    assert "hp-scp refuses vehicle.angle_of_attack, final_time" in lines[0]
+    assert lines[1] == (
+        "error: method auto cannot solve this problem: final_time: energy-scp cannot fix the "
+        "final time: energy is its independent variable and time is an outcome; leave "
+        "final_time free"
+    )
+    assert refused.out == ""
+
+
 # 4. keys in single-user mode
 
 

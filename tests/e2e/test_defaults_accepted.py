@@ -63,3 +63,26 @@ def test_every_methods_defaults_validate_and_are_accepted(http: ServiceClient, m
     )
     assert batch.status_code in (201, 202), batch.text
     _cancel(http, f"/v1/batches/{batch.json()['id']}")
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_auto_with_its_defaults_is_accepted_on_every_scenario(
+    http: ServiceClient, scenario: str
+) -> None:
+    """Auto's defaults (and the defaults of each method it would run) sit within the caps."""
+    body = {"scenario": scenario, "overrides": {"method": {"name": "auto"}}}
+    validation = http.http.post("/v1/problems/validate", json=body)
+    assert validation.status_code == 200, validation.text
+    assert validation.json()["problem"]["method"]["name"] == "auto"
+
+
+def test_a_batch_of_methods_may_leave_a_child_to_auto(http: ServiceClient) -> None:
+    batch = http.http.post(
+        "/v1/batches",
+        json={
+            "base": {"scenario": "rlv-max-terminal-velocity"},
+            "methods": [{"name": "auto"}, {"name": "foh-ptr"}],
+        },
+    )
+    assert batch.status_code in (201, 202), batch.text
+    _cancel(http, f"/v1/batches/{batch.json()['id']}")

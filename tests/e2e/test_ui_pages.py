@@ -165,6 +165,30 @@ def test_the_list_links_each_of_the_callers_jobs(
     watch.clean()
 
 
+def test_a_job_left_to_auto_shows_the_method_it_chose(
+    watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
+) -> None:
+    """A document without a method: the list and the job's page say ``auto → energy-scp``."""
+    from worker.solver.scenarios import get_scenario
+
+    document = dict(get_scenario("rlv-min-heat-load").problem)
+    document.pop("method")
+    job = embedded_client.submit(document)
+    assert embedded_client.wait_finished(job["id"])["status"] == "succeeded"
+    page = watch.page
+    page.goto(f"{embedded_server.base_url}/ui/")
+    link = f"#jobs a[href='jobs/{job['id']}']"
+    page.wait_for_selector(link)
+    cells = page.eval_on_selector(
+        link, "a => [...a.closest('tr').children].map(c => c.textContent)"
+    )
+    assert cells[2] == "auto → energy-scp"
+    page.click(link)
+    page.wait_for_selector("#figures:not([hidden])")
+    assert page.inner_text("#method") == "auto → energy-scp"
+    watch.clean()
+
+
 def test_a_batch_page_follows_its_children_and_shows_its_plot(
     watch: PageWatch, embedded_server: ApiServer, embedded_client: ServiceClient
 ) -> None:

@@ -325,7 +325,7 @@ def test_a_job_id_that_cannot_exist_is_the_404_of_an_unknown_job(api: Api, job_i
             "terminal_out_of_domain",
         ),
         (
-            {"method": {"weight_trust_region": 1e300}},
+            {"method": {"name": "energy-scp", "weight_trust_region": 1e300}},
             "method.weight_trust_region",
             "magnitude_limit",
         ),

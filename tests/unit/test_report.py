@@ -23,7 +23,14 @@ import pytest
 
 from app.report import available_plots, render_plot, trajectory_csv
 from app.report.files import plot_command, read_result
-from app.report.plots import DPI, FIGURE_SIZE_IN, UnknownPlotError, figure, zone_outline
+from app.report.plots import (
+    DPI,
+    FIGURE_SIZE_IN,
+    UnknownPlotError,
+    figure,
+    run_boundaries,
+    zone_outline,
+)
 from app.report.table import NoTrajectoryError
 from worker.solver.scenarios import get_scenario
 from worker.solver.verification import MAX_PATH_SAMPLES, sample_rows
@@ -327,3 +334,18 @@ def test_a_problem_without_a_heat_rate_limit_is_verified_and_kept() -> None:
     assert "heat_rate_W_m2" not in flown and "heat_rate_W_m2" not in result["trajectory"]
     peak = result["verification"]["path_maxima"]["dynamic_pressure_Pa"]
     assert max(flown["dynamic_pressure_Pa"]) == peak["max"]
+
+
+def test_the_convergence_plot_marks_where_a_start_or_an_attempt_begins() -> None:
+    """A single run has no mark; another start of a run, or auto's next attempt, begins one."""
+    single = [{"iteration": i, "extra": {}} for i in range(1, 5)]
+    assert run_boundaries(single) == []
+    starts = [{"extra": {"start": s}} for s in (1, 1, 2, 2)]
+    assert run_boundaries(starts) == [3]
+    attempts = [
+        {"extra": {"auto_attempt": 1, "start": 1}},
+        {"extra": {"auto_attempt": 1, "start": 2}},
+        {"extra": {"auto_attempt": 2}},
+        {"extra": {"auto_attempt": 2}},
+    ]
+    assert run_boundaries(attempts) == [2, 3]

@@ -18,6 +18,7 @@ from app.schemas import (
     MAX_NODES,
     METHOD_NAMES,
     METHOD_OPTIONS,
+    AutoOptions,
     EnergyScpOptions,
     FixedSpec,
     FreeSpec,
@@ -145,16 +146,35 @@ def test_string_objective_becomes_one_term_of_weight_one() -> None:
     assert problem.objective.terms[0].weight == 1.0
 
 
-def test_method_defaults_to_energy_scp() -> None:
+def test_method_defaults_to_auto() -> None:
+    """A document without a method, or a method object without a name, lets auto choose."""
     document = reference()
     del document["method"]
-    assert ProblemDocument.model_validate(document).method == EnergyScpOptions()
+    assert ProblemDocument.model_validate(document).method == AutoOptions()
     document["method"] = {"nodes": 60}
     method = ProblemDocument.model_validate(document).method
-    assert method.name == "energy-scp"
+    assert isinstance(method, AutoOptions)
     assert method.nodes == 60
-    assert METHOD_NAMES[0] == "energy-scp"  # the default method is listed first
+    assert method.options_for("energy-scp") == EnergyScpOptions(nodes=60)
+    assert "auto" not in METHOD_NAMES  # the methods auto chooses among
     assert METHOD_OPTIONS["energy-scp"] is EnergyScpOptions
+    document["method"] = {"name": "energy-scp"}  # a named method stays as it was
+    assert ProblemDocument.model_validate(document).method == EnergyScpOptions()
+
+
+def test_auto_overrides_are_checked_against_each_methods_options() -> None:
+    document = reference()
+    document["method"] = {
+        "overrides": {"foh-ptr": {"nodes": 2}, "nope": {}, "cheb-scvx": {"name": "hp-scp"}}
+    }
+    found = issues_of(document)
+    assert sorted(found) == [
+        "method.overrides.cheb-scvx.name",
+        "method.overrides.foh-ptr.nodes",
+        "method.overrides.nope",
+    ]
+    assert_issue(found, "method.overrides.nope", "unknown method 'nope'; auto tries energy-scp")
+    assert_issue(found, "method.overrides.foh-ptr.nodes", "greater than or equal to 9")
 
 
 def test_mu_alone_replaces_default_g0() -> None:

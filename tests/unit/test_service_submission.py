@@ -7,7 +7,7 @@ from typing import Any
 import pytest
 
 from app.errors import ApiError
-from app.schemas import ProblemDocument
+from app.schemas import EnergyScpOptions, ProblemDocument
 from app.submission import apply_overrides, merge_patch, request_fingerprint, resolve_submission
 from worker.solver.scenarios import get_scenario
 
@@ -141,7 +141,8 @@ def test_switching_the_method_drops_the_old_method_s_options() -> None:
     document = _resolved(
         {"method": {"name": "foh-ptr", "nodes": 30}}, method={"name": "energy-scp"}
     )
-    assert document["method"] == _resolved({"method": None})["method"]  # energy-scp's defaults
+    assert document["method"] == EnergyScpOptions().model_dump(mode="json")  # its defaults
+    assert _resolved({"method": None})["method"]["name"] == "auto"  # no method: auto chooses
 
 
 def test_null_removes_fields_and_arrays_replace_whole() -> None:

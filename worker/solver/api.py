@@ -13,8 +13,10 @@ from typing import Any, cast
 import numpy as np
 
 from app.schemas import ProblemDocument
+from app.schemas.methods import AutoOptions
 from app.schemas.plausibility import plausibility_warnings
 from app.schemas.result import json_ready
+from worker.solver.auto import solve_auto
 from worker.solver.diagnosis import BUDGET_CODES, advice, blame_input, input_advice, stall_note
 from worker.solver.finite import non_finite_entries
 from worker.solver.global_start import GlobalStartStoppedError, with_global_start
@@ -241,8 +243,18 @@ def solve_problem(
     or the verification was stopped. Solver failures
     (infeasible, diverged, time limit, numerical trouble, failed verification) come back as a
     result with ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only
-    programming errors raise.
+    programming errors raise. A problem whose method is ``auto`` is solved by the methods that
+    accept it in auto's order (``worker.solver.auto``), each attempt a solve of this function.
     """
+    if isinstance(problem.method, AutoOptions):
+        return solve_auto(
+            problem,
+            solve_problem,
+            on_iteration=on_iteration,
+            should_stop=should_stop,
+            on_phase=on_phase,
+            on_kernels=on_kernels,
+        )
     start = time.perf_counter()
     method = problem.method.name
     about_input: dict[str, Any] = {  # what every result says of its input, a solve or not

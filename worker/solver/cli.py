@@ -229,6 +229,7 @@ def _progress(record: dict[str, Any]) -> None:
             flush=True,
         )
         return
+    attempt = f"{extra['method']:10s} " if extra.get("auto_attempt") else ""  # auto's attempt
     change = record["max_state_change"]
     value = record.get("objective_value")
     shown = f"{value:.6g}" if isinstance(value, float) else "-"
@@ -238,7 +239,7 @@ def _progress(record: dict[str, Any]) -> None:
             0.0,
         )
     print(
-        f"iter {record['iteration']:3d}  objective {shown:>12}  "
+        f"{attempt}iter {record['iteration']:3d}  objective {shown:>12}  "
         f"dh {change['altitude_m']:9.1f} m  dlon {change['longitude_deg']:7.3f}  "
         f"dlat {change['latitude_deg']:7.3f}  dgam {change['flight_path_angle_deg']:6.3f}  "
         f"dpsi {change['heading_deg']:6.3f} deg  {record['conic_status']}  "
@@ -248,9 +249,34 @@ def _progress(record: dict[str, Any]) -> None:
     )
 
 
+def _attempt_lines(result: dict[str, Any]) -> list[str]:
+    """Auto's attempts, one line each, the method kept and the cross-check's verdict."""
+    attempts = result.get("attempts")
+    if attempts is None:
+        return []
+    lines = [f"method: auto -> {result['method']}"]
+    for a in attempts:
+        value = "-" if a["objective"] is None else f"{a['objective']:.6g}"
+        code = f" ({a['failure_code']})" if a["failure_code"] else ""
+        kept = ", kept" if a["kept"] else ""
+        lines.append(
+            f"  attempt {a['attempt']} {a['method']} ({a['purpose']}): {a['status']}{code}, "
+            f"{a['iterations']} iterations, {a['time_s']:.2f} s, objective {value}{kept}"
+        )
+    cross = result.get("cross_check") or {}
+    if cross.get("warning"):
+        lines.append(f"cross-check: {cross['warning']}")
+    elif cross.get("agree"):
+        lines.append(f"cross-check: the values agree ({100 * cross['relative_difference']:.3f} %)")
+    elif cross.get("note"):
+        lines.append(f"cross-check: {cross['note']}")
+    return lines
+
+
 def _summary(result: dict[str, Any]) -> str:
-    """The result in a few lines: status, reason, objective, verification, timing."""
-    lines = [f"status: {result['status']}"]
+    """The result in a few lines: status, reason, auto's attempts, objective, verification,
+    timing."""
+    lines = [f"status: {result['status']}", *_attempt_lines(result)]
     if result.get("failure"):
         lines.append(f"reason: {result['failure']['code']}: {result['failure']['message']}")
         lines.extend(f"  try: {hint}" for hint in result["failure"].get("advice", []))

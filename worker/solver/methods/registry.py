@@ -11,7 +11,6 @@ method's own checks (which assume a single-phase problem without propulsion).
 from __future__ import annotations
 
 import importlib
-from typing import Any
 
 from app.schemas import FieldIssue, ProblemDocument
 from app.schemas.methods import METHOD_OPTION_TYPES, method_name
@@ -39,11 +38,6 @@ def _load() -> dict[str, MethodInfo]:
 
 METHODS: dict[str, MethodInfo] = _load()
 """Every method by name, in the order of the options list."""
-
-
-def list_methods() -> list[dict[str, Any]]:
-    """Every method, JSON-ready, with its features and default options."""
-    return [info.describe() for info in METHODS.values()]
 
 
 _CAPABILITIES = (("phases", "phases"), ("vehicle.propulsion", "propulsion"))
