@@ -120,6 +120,7 @@ def test_a_cancel_during_the_optimization_says_where_it_stopped(
     assert client.http.delete(f"/v1/jobs/{queued['id']}").status_code == 200
     assert client.job(queued["id"])["progress"] == {
         "phase": "finished",
+        "method": None,
         "iteration": None,
         "cost": None,
         "max_state_change": None,
