@@ -62,8 +62,10 @@ class _Attempt:
     lease_s: float = 30.0
     heartbeat: Heartbeat | None = None
     started: float = field(default_factory=time.monotonic)
+    cpu_started: float = field(default_factory=time.process_time)
     history: list[dict[str, Any]] = field(default_factory=list)
-    deadline_hit: bool = False
+    deadline_hit: str | None = None
+    """Which of the job's time limits stopped the solve ("CPU time limit of 120 s", ...)."""
     stop_requested: bool = False
     write_errors: int = 0
     stored: int | None = 0
@@ -79,6 +81,11 @@ class _Attempt:
 
     def elapsed(self) -> float:
         return time.monotonic() - self.started
+
+    def cpu_used(self) -> float:
+        """CPU seconds this process spent since the attempt's clock started (the solve runs
+        in it, every thread of it counted)."""
+        return time.process_time() - self.cpu_started
 
     def _write(self, what: str, kind: str, write: Callable[[Any], bool]) -> bool:
         """Run one progress ``write`` (True while the attempt owns the job), then wake the
@@ -134,8 +141,12 @@ class _Attempt:
         )
 
     def should_stop(self) -> bool:
-        if self.elapsed() > self.limits.solve_s:
-            self.deadline_hit = True
+        limits = self.limits
+        if limits.cpu_s is not None and self.cpu_used() > limits.cpu_s:
+            self.deadline_hit = f"CPU time limit of {limits.cpu_s:g} s"
+            return True
+        if self.elapsed() > limits.solve_s:
+            self.deadline_hit = f"wall-clock limit of {limits.solve_s:g} s"
             return True
         if self.stop_requested or (self.heartbeat is not None and self.heartbeat.lost):
             self.stop_requested = True
@@ -171,7 +182,7 @@ def _outcome_from_result(result: dict[str, Any], attempt: _Attempt) -> Outcome:
     failure = result.get("failure") if isinstance(result.get("failure"), dict) else None
     if status == JobStatus.CANCELLED and attempt.deadline_hit and not attempt.stop_requested:
         status = JobStatus.TIMED_OUT.value
-        message = f"stopped at the job's time limit of {attempt.limits.solve_s:g} s"
+        message = f"stopped at the job's {attempt.deadline_hit}"
         stopped = str((failure or {}).get("message") or "")
         if stopped.startswith("stopped "):  # the solver's "stopped during ...": where it was
             message += ", " + stopped.removeprefix("stopped ")
@@ -460,6 +471,7 @@ def _load_solver(attempt: _Attempt) -> None:
         return
     log.info("job %s: solver kernels loaded in %.1f s", attempt.job_id, seconds)
     attempt.started = time.monotonic()
+    attempt.cpu_started = time.process_time()
 
 
 def _solve(

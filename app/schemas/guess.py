@@ -97,7 +97,11 @@ class GlobalGuessOptions(BoundedOptions):
         4000, ge=10, le=1_000_000, description="Most candidate trajectories propagated."
     )
     time_limit_s: float = Field(
-        60.0, gt=0, le=3600, description="Most wall seconds the search may take."
+        60.0,
+        gt=0,
+        le=3600,
+        description="Most CPU seconds of the solving process the search may take (a wall-clock "
+        "safety of 4 x as many seconds also ends it).",
     )
     knots: int = Field(
         3, ge=1, le=8, description="Knots of alpha and bank per phase (linear between them)."

@@ -46,6 +46,30 @@ class _Record(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+class FailureCause(_Record):
+    """The input a physical pre-check found binding: a limit the least-bank flight exceeds, a
+    target out of reach, a zone across the corridor, a final time far from what the flight
+    takes (docs/problem-contract.md, "Pre-checks")."""
+
+    check: str = Field(
+        ...,
+        description="limit_below_pull_up, target_out_of_reach, zone_blocks_corridor or final_time.",
+    )
+    field: str = Field(..., description="The problem field to change, as a dotted path.")
+    proven: bool = Field(
+        ...,
+        description="True: a necessary condition of every solution fails, so the problem has "
+        "none (the solve was refused before the method ran); false: the likely cause.",
+    )
+    value: Number = Field(
+        None, description="What the pre-check's flights or geometry reach, in ``units``."
+    )
+    limit: Number = Field(None, description="What the input asks, in ``units``.")
+    units: str | None = Field(
+        None, description="Unit of value and limit (W/m^2, Pa, g0, km, s, deg)."
+    )
+
+
 class Failure(_Record):
     """Why a solve did not succeed: a stable code and a readable message."""
 
@@ -62,6 +86,11 @@ class Failure(_Record):
         default_factory=list,
         description="What to change to make it succeed, most likely first, each naming the "
         "field and the figure that points to it (absent when there is nothing to suggest).",
+    )
+    cause: FailureCause | None = Field(
+        None,
+        description="The binding input a physical pre-check found, with its figure (absent when "
+        "none was found).",
     )
 
 
@@ -97,6 +126,11 @@ class Timing(_Record):
     verification_s: float = Field(0.0, description="Propagation and checks, s.")
     total_s: float = Field(
         0.0, description="Whole solve including model building and kernel loading, s."
+    )
+    cpu_s: float | None = Field(
+        None,
+        description="CPU time of the solving process over the whole solve (every thread), s: "
+        "the clock of method.time_limit_s.",
     )
 
 

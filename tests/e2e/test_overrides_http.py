@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.integration.harness import SCENARIO, ServiceClient
+from tests.integration.harness import SCENARIO, US76_FEASIBLE, ServiceClient
 from worker.solver.atmosphere import ExponentialAtmosphere, US76Atmosphere
 
 pytestmark = pytest.mark.slow
@@ -72,7 +72,7 @@ def test_validate_switches_the_atmosphere_and_names_bad_fields(client: ServiceCl
 
 
 def test_job_is_stored_and_solved_with_us76(client: ServiceClient, data_dir: Path) -> None:
-    overrides = {**US76, "method": {"nodes": 41, "max_iterations": 5}}
+    overrides = {**US76_FEASIBLE, "method": {"nodes": 41, "max_iterations": 5}}
     job = client.submit({"scenario": SCENARIO, "overrides": overrides})
     stored = _stored_problem(data_dir, job["id"])
     assert stored["planet"]["atmosphere"] == {"model": "us76"}
@@ -93,3 +93,38 @@ def test_job_is_stored_and_solved_with_us76(client: ServiceClient, data_dir: Pat
         rho0=own["density_sea_level_kg_m3"], scale_height_m=own["scale_height_m"]
     ).density(altitude)
     assert np.median(np.abs(density / exponential - 1.0)) > 0.1
+
+
+def test_an_infeasible_heat_limit_fails_at_once_naming_the_limit_and_the_peak(
+    client: ServiceClient,
+) -> None:
+    """The scenario in the US76 atmosphere: full lift-up flight from its entry point already
+    peaks at 1 108 kW/m^2 in the first pull-up, above its 1 000 kW/m^2 limit, and no bank
+    profile flies lower. The job fails ``infeasible`` before any iteration, naming the limit,
+    the peak and the field to raise (instead of diverging after ten iterations)."""
+    job = client.submit({"scenario": SCENARIO, "overrides": US76})
+    done = client.wait_finished(job["id"])
+    assert (done["status"], done["error"]["code"]) == ("failed", "infeasible"), done
+    message = done["error"]["message"]
+    assert "heat-rate limit 1 000 kW/m^2 is below the first heat-rate peak" in message
+    assert "full lift-up flight, 1 108 kW/m^2" in message
+    result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
+    cause = result["failure"]["cause"]
+    assert cause["field"] == "path_constraints.heat_rate.max_W_m2" and cause["proven"] is True
+    assert cause["limit"] == 1.0e6 and 1.10e6 < cause["value"] < 1.115e6
+    assert result["failure"]["advice"][0].startswith(
+        "raise path_constraints.heat_rate.max_W_m2 above 1.108e+06"
+    )
+    assert result["history"] == [] and result["timing"]["iterations"] == 0
+
+
+def test_the_readme_override_example_solves(client: ServiceClient) -> None:
+    """README.md's example of overrides: paper 002's case in the US76 atmosphere on 60 nodes
+    succeeds, verified (947.69 m/s)."""
+    overrides = {"method": {"nodes": 60}, "planet": {"atmosphere": {"model": "us76"}}}
+    job = client.submit({"scenario": "rlv-max-terminal-velocity", "overrides": overrides})
+    done = client.wait_finished(job["id"], timeout=300)
+    assert done["status"] == "succeeded", done
+    result = client.http.get(f"/v1/jobs/{job['id']}/result").json()
+    assert result["verification"]["feasible"] is True
+    assert abs(result["objective"]["value"] - 947.69) < 0.01

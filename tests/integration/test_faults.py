@@ -357,13 +357,13 @@ def test_the_hard_time_limit_ends_a_runaway_solve_and_the_worker_goes_on(
     db = fault_env["DATABASE_URL"]
     worker = workers.start()
     body = long_job(SCENARIO)
-    body["method"]["time_limit_s"] = 3.0  # soft limit 4 s, hard limit 9 s in this deployment
+    body["method"]["time_limit_s"] = 3.0  # CPU s: wall 12 s, soft 13 s, hard 18 s here
     runaway = fault_client.submit(body)["id"]
     wait_for_row(db, runaway, running_with_progress, 60)
-    # Stopped at 1.8 s of its 3 s: it never returns and ignores signals. Its lease (2 s) lapses
-    # long before the hard limit (the limit, both margins and the 4 s result hold: 9 s) kills
-    # it; it had run 1.8 s, under its limit, so it is re-queued (only the time an attempt ran
-    # counts), and its second attempt ends at its own limit.
+    # Stopped at 1.8 s: it never returns and ignores signals. Its lease (2 s) lapses long
+    # before the hard limit (the 12 s wall-clock limit, both margins and the 4 s result hold:
+    # 18 s) kills it; it had run 1.8 s, under its limit, so it is re-queued (only the time an
+    # attempt ran counts), and its second attempt ends at its own limit.
     while _running_for(db, runaway) < 1.8:
         time.sleep(0.05)
     stopped = kill_children(worker, signal.SIGSTOP)

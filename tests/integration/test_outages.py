@@ -190,8 +190,9 @@ def test_a_database_outage_loses_neither_running_nor_queued_jobs(
 def test_a_worker_lost_near_its_time_limit_is_retried(
     outage_env: dict[str, str], outage_api: ApiServer, outage_workers: Workers
 ) -> None:
-    """Killed after about 60 % of its 5 s: the time it ran counts, not the time it took to
-    notice, so the job gets a second attempt, which ends at its own limit."""
+    """Killed after about 3 s of its 20 s wall-clock limit (5 CPU s): the time it ran counts,
+    not the time it took to notice, so the job gets a second attempt, which ends at its own
+    CPU-time limit."""
     worker = outage_workers.start()
     client = outage_api.client()
     try:
@@ -208,7 +209,10 @@ def test_a_worker_lost_near_its_time_limit_is_retried(
         done = client.wait_finished(job["id"], timeout=90)
         assert (done["status"], done["attempts"]) == ("timed_out", 2)
         assert done["error"]["code"] == "time_limit"
-        assert "stopped at the job's time limit" in done["error"]["message"]  # the worker's own
+        message = done["error"]["message"]  # the worker's stop, or the method's own
+        assert "stopped at the job's CPU time limit of 5 s" in message or (
+            message.startswith("CPU time limit 5 s reached after")
+        ), message
         assert rows(_direct(outage_env), [job["id"]])[job["id"]]["history"] >= 1
         assert done["status"] in TERMINAL
     finally:
@@ -221,15 +225,15 @@ def test_a_result_held_through_an_outage_outlives_the_jobs_hard_time_limit(
     outage_workers: Workers,
     proxy: TcpProxy,
 ) -> None:
-    """A job with a 10 s time limit: a solve still running at 12 s (the limit and both 1 s
-    margins) is killed, but this one finishes in a few seconds while the database is away, and
-    its worker keeps the result past those 12 s until the database is back, at 18 s: one
-    attempt, its outcome stored (``succeeded``; ``timed_out`` by its own limit on a machine
-    too busy to solve it in 10 s)."""
+    """A job with a 2.5 s CPU-time limit, so a 10 s wall-clock limit: a solve still running at
+    12 s (the limit and both 1 s margins) is killed, but this one finishes in a few seconds
+    while the database is away, and its worker keeps the result past those 12 s until the
+    database is back, at 18 s: one attempt, its outcome stored (``succeeded``; ``timed_out`` by
+    its own limit when 2.5 CPU seconds do not solve it)."""
     outage_workers.start()
     client = outage_api.client()
     try:
-        job = client.submit({"scenario": SCENARIO, "method": {"time_limit_s": 10}})["id"]
+        job = client.submit({"scenario": SCENARIO, "method": {"time_limit_s": 2.5}})["id"]
         wait_for_row(_direct(outage_env), job, lambda r: r["status"] == "running", 60)
         started = time.monotonic() - _running_for(_direct(outage_env), job)
         proxy.cut()

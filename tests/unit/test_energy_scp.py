@@ -181,9 +181,14 @@ def test_impossible_path_limits_fail_with_reason() -> None:
         **raw["path_constraints"],
         "heat_rate": {"max_W_m2": 1e3, "k_q": 9.4369e-5},
     }
-    result = solve_problem(ProblemDocument.model_validate(raw))
+    doc = ProblemDocument.model_validate(raw)
+    result = solve_problem(doc, prechecks=False)  # the method's own refusal
     assert result["status"] == "failed"
     assert result["failure"]["code"] == "path_limits_infeasible"
+    refused = solve_problem(doc)  # the pre-check's, before the method: the same cause, proven
+    assert (refused["status"], refused["failure"]["code"]) == ("failed", "infeasible")
+    assert refused["failure"]["cause"]["field"] == "path_constraints.heat_rate.max_W_m2"
+    assert refused["failure"]["cause"]["proven"] is True
 
 
 def test_cancel_and_time_limit_keep_history() -> None:

@@ -129,6 +129,7 @@ def test_first_order_step_stops_short() -> None:
             weight_trust_region_min=0.02,
             trust_defect_target=0.3,
             trust_factor=2.0,
+            max_iterations=30,
         )
     )
     assert result["status"] == "succeeded" or result["failure"]["code"] == "max_iterations"

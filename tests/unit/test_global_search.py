@@ -142,11 +142,13 @@ def test_the_evaluation_budget_stops_after_whole_generations(
 
 
 def test_the_time_limit_stops_a_search_between_generations() -> None:
-    """Each generation takes 20 ms; a 0.1 s limit ends the search after about five of them,
-    far before its 4000 evaluations (100 generations, 2 s)."""
+    """Each generation takes 20 ms of CPU time; a 0.1 s limit (CPU seconds) ends the search
+    after about five of them, far before its 4000 evaluations (100 generations, 2 s)."""
 
     def slow(X: Array) -> Array:
-        time.sleep(0.02)
+        end = time.process_time() + 0.02
+        while time.process_time() < end:
+            pass
         return sphere(X)
 
     out = global_search(
@@ -154,7 +156,23 @@ def test_the_time_limit_stops_a_search_between_generations() -> None:
     )
     assert out.stopped_by == "time"
     assert 0.1 <= out.wall_s < 1.0  # the limit plus one generation (loose: a busy machine)
-    assert 1 <= out.generations <= 5  # five generations take at least 0.1 s
+    assert 1 <= out.generations <= 5  # five generations take at least 0.1 s of CPU time
+    assert out.evaluations < 4000
+
+
+def test_a_search_that_waits_is_ended_by_the_wall_clock_safety() -> None:
+    """A scorer that sleeps spends no CPU time: the wall-clock safety (4 x the 0.1 s limit)
+    ends the search, by time, after about 0.4 s."""
+
+    def waiting(X: Array) -> Array:
+        time.sleep(0.02)
+        return sphere(X)
+
+    out = global_search(
+        waiting, LOWER4, UPPER4, algorithm="ga", seed=0, budget=SearchBudget(time_limit_s=0.1)
+    )
+    assert out.stopped_by == "time"
+    assert 0.4 <= out.wall_s < 2.0
     assert out.evaluations < 4000
 
 

@@ -144,7 +144,8 @@ def test_energy_divergence_is_a_failed_result_not_a_traceback() -> None:
         raw = _heat_limited_hard_point(41)
         raw["method"]["weight_terminal_penalty"] = None  # the paper's equality rows leap away
         doc = ProblemDocument.model_validate(raw)
-        result = solve_problem(doc, on_iteration=streamed.append)
+        # the method's own report: the pre-checks would refuse the 700 kW/m^2 limit at once
+        result = solve_problem(doc, on_iteration=streamed.append, prechecks=False)
     _finite_json(result)
     assert result["status"] == "failed"
     assert result["failure"]["code"] == "diverged"
@@ -165,7 +166,8 @@ def test_an_unreachable_hard_terminal_point_is_reported_infeasible_with_its_miss
     # even 750 kW/m^2 infeasible for the built-in point): the exact penalty's miss stays
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        result = solve_problem(ProblemDocument.model_validate(_heat_limited_hard_point(41)))
+        doc = ProblemDocument.model_validate(_heat_limited_hard_point(41))
+        result = solve_problem(doc, prechecks=False)  # the method's own report of it
     _finite_json(result)
     assert result["status"] == "failed"
     assert result["failure"]["code"] == "infeasible"
@@ -181,14 +183,20 @@ def test_an_unavoidable_zone_is_reported_infeasible_with_where_and_how_much() ->
     doc["no_fly_zones"] = [
         {"name": "wall", "center_latitude_deg": 20, "center_longitude_deg": 0, "radius_deg": 15}
     ]
+    doc["method"]["max_iterations"] = 30
     result = solve_problem(ProblemDocument.model_validate(doc))
     _finite_json(result)
     assert result["status"] == "failed"
     assert result["failure"]["code"] == "infeasible"
     message = result["failure"]["message"]
-    # foh-ptr's two starts: the first's answer is reported, its iterations are 1-30
-    assert message.startswith(
-        "start 1 of 2 (history iterations 1-30): not converged in 30 iterations, infeasible:"
+    # the pre-checks name the zone first: its sides lie wider than any flight turns
+    assert message.startswith("infeasible, likely because no-fly zone 'wall' (radius 1 670 km")
+    assert "the zone likely blocks the whole corridor" in message
+    assert result["failure"]["cause"]["field"] == "no_fly_zones[0]"
+    # then the run's own report: foh-ptr's two starts, the first's answer, its iterations 1-30
+    assert (
+        "(the run ended infeasible: start 1 of 2 (history iterations 1-30): not converged in 30 "
+        "iterations, infeasible:" in message
     )
     assert "virtual control did not vanish (norm" in message
     assert "no-fly zone 0 (wall) penetrated by" in message and "deg at t = " in message

@@ -25,6 +25,7 @@ from app.storage.session import Database, create_db_engine
 from app.sweeper import sweep_once
 from tests.unit.test_service_api import RecordingDispatcher
 from worker.heartbeat import Heartbeat
+from worker.solver.solve_clock import WALL_FACTOR
 
 PROBLEM = {"method": {"name": "energy-scp", "time_limit_s": 60}}
 LEASE_S = 30.0
@@ -99,7 +100,8 @@ def test_sweeper_ends_jobs_past_their_time_limit_or_attempts(
     runaway = _new(database, {"method": {"name": "energy-scp", "time_limit_s": 2}})
     exhausted, cancelled = _new(database), _new(database)
     _claim(database, runaway)
-    _started_ago(database, runaway, 3.0)  # it ran 3 s of its 2 s before its worker was lost
+    # it ran 9 s of the 8 s wall-clock limit of its 2 CPU s before its worker was lost
+    _started_ago(database, runaway, WALL_FACTOR * 2 + 1.0)
     with database.session() as s:
         history = [{"iteration": 1}, {"iteration": 2}]
         assert repository.record_iteration(s, runaway, 1, history, {"iteration": 2}, LEASE_S)

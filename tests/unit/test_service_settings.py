@@ -50,13 +50,15 @@ def test_time_limits_follow_the_job_and_are_capped() -> None:
         hard_limit_grace_s=10,
         result_write_retry_s=200,
     )
+    # 20 CPU seconds: a wall-clock limit four times as long
     own = job_time_limits({"method": {"time_limit_s": 20}}, settings)
-    assert (own.solve_s, own.soft_s, own.stuck_s, own.hard_s) == (20, 25, 35, 235)
+    assert (own.cpu_s, own.solve_s, own.soft_s, own.stuck_s, own.hard_s) == (20, 80, 85, 95, 295)
     capped = job_time_limits({"method": {"time_limit_s": 1000}}, settings)
-    assert (capped.solve_s, capped.soft_s, capped.stuck_s, capped.hard_s) == (100, 105, 115, 315)
+    assert (capped.cpu_s, capped.solve_s, capped.soft_s) == (100, 100, 105)
+    assert (capped.stuck_s, capped.hard_s) == (115, 315)
     assert capped.hard_s == settings.max_hard_limit_s  # the result's hold is inside the limit
     default = job_time_limits({"method": {}}, settings)
-    assert default.solve_s == 50
+    assert (default.cpu_s, default.solve_s) == (None, 50)
     assert requested_time_limit({"method": {"time_limit_s": True}}) is None
 
 

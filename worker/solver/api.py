@@ -18,6 +18,7 @@ from app.schemas.plausibility import plausibility_warnings
 from app.schemas.result import json_ready
 from worker.solver.auto import solve_auto
 from worker.solver.diagnosis import BUDGET_CODES, advice, blame_input, input_advice, stall_note
+from worker.solver.failure_causes import name_causes, refusal
 from worker.solver.finite import non_finite_entries
 from worker.solver.global_start import GlobalStartStoppedError, with_global_start
 from worker.solver.methods import METHODS, check_support
@@ -229,6 +230,7 @@ def solve_problem(
     should_stop: StopCheck | None = None,
     on_phase: PhaseCallback | None = None,
     on_kernels: Callable[[KernelWait], None] | None = None,
+    prechecks: bool = True,
 ) -> dict[str, Any]:
     """Solve ``problem`` with its selected method and return the JSON-ready result document.
 
@@ -238,7 +240,10 @@ def solve_problem(
     ``on_phase`` hears when optimization and verification start; ``on_kernels`` hears why the
     optimization waits for the method's compiled kernels (``warmup.warm_up``): "compiling" when
     numba's cache lacks them (once after an install), "loading" when a load from the cache is
-    slow. A stop during the optimization ends it before the next iteration and starts no
+    slow. ``prechecks``: run the physical pre-checks (``prechecks``; a proof of infeasibility
+    ends the solve before the method, a failure names its likely cause); False runs the method
+    on any problem and reports its failure in the method's own terms (tests of that reporting).
+    A stop during the optimization ends it before the next iteration and starts no
     verification; the failure message says whether the optimization (before which iteration)
     or the verification was stopped. Solver failures
     (infeasible, diverged, time limit, numerical trouble, failed verification) come back as a
@@ -256,6 +261,7 @@ def solve_problem(
             on_kernels=on_kernels,
         )
     start = time.perf_counter()
+    cpu_start = time.process_time()
     method = problem.method.name
     about_input: dict[str, Any] = {  # what every result says of its input, a solve or not
         "provenance": input_provenance(problem),
@@ -279,6 +285,27 @@ def solve_problem(
         build_phased_problem(problem) if phased else build_problem(problem)
     )
     base = model.base if isinstance(model, PhasedProblem) else model
+    # a flight in phases or with an engine is not what the pre-checks' gliding flights describe
+    prechecked = prechecks and not problem.phases and problem.vehicle.propulsion is None
+    refused, pull_up = refusal(base) if prechecked else (None, None)
+    if refused is not None:
+        refused["advice"] = [*input_advice(about_input), *refused["advice"]]
+        return validated(
+            {
+                "status": "failed",
+                "method": method,
+                "failure": refused,
+                "history": [],
+                "timing": {
+                    "wall_s": 0.0,
+                    "conic_solve_s": 0.0,
+                    "iterations": 0,
+                    "total_s": time.perf_counter() - start,
+                    "cpu_s": time.process_time() - cpu_start,
+                },
+                **about_input,
+            }
+        )
     options = problem.method
     start_note: str | None = None
     guess = problem.initial_guess
@@ -301,8 +328,8 @@ def solve_problem(
                 }
             )
         base = model
-        # the method has what the search left of the job's time limit (at least half of it)
-        spent = time.perf_counter() - start
+        # the method has what the search left of the job's CPU time limit (at least half of it)
+        spent = time.process_time() - cpu_start
         options = options.model_copy(update={"time_limit_s": options.time_limit_s - spent})
     streamed: list[IterationRecord] = []
 
@@ -384,23 +411,31 @@ def solve_problem(
                 else []
             )
             _judge(document, report, violations, outcome.failure_message)
+    causes = name_causes(document, base, pull_up, problem) if prechecked else []
     last_record = outcome.last_record
-    explain(document, problem.method, last_record.as_dict() if last_record else None)
+    explain(document, problem.method, last_record.as_dict() if last_record else None, causes)
     document["timing"] = {
         "wall_s": wall,
         "conic_solve_s": outcome.conic_solve_s,
         "iterations": len(history),
         "verification_s": verification_s,
         "total_s": time.perf_counter() - start,
+        "cpu_s": time.process_time() - cpu_start,
     }
     return validated(document)
 
 
-def explain(document: dict[str, Any], options: Any, last: dict[str, Any] | None = None) -> None:
+def explain(
+    document: dict[str, Any],
+    options: Any,
+    last: dict[str, Any] | None = None,
+    causes: list[str] | None = None,
+) -> None:
     """Add to a failed result what was still moving when a budget ran out and what a user can
-    change (``failure.advice``), its implausible inputs first; a cancelled one is left as it
-    is. ``last``: the last iteration of the run whose answer is reported (default: the
-    history's last record; a run of several starts reports one start's answer)."""
+    change (``failure.advice``): its implausible inputs first, then ``causes`` (the advice of
+    the pre-checks' named causes), then the method's; a cancelled one is left as it is.
+    ``last``: the last iteration of the run whose answer is reported (default: the history's
+    last record; a run of several starts reports one start's answer)."""
     failure = document.get("failure")
     if document["status"] in ("succeeded", "cancelled") or not failure:
         return
@@ -410,6 +445,7 @@ def explain(document: dict[str, Any], options: Any, last: dict[str, Any] | None 
         note = stall_note(last or (history[-1] if history else None), options)
         if note:
             failure["message"] = f"{failure['message']}; {note}"
-    hints = list(dict.fromkeys([*input_advice(document), *advice(document, options)]))
+    hints = [*input_advice(document), *(causes or []), *advice(document, options)]
+    hints = list(dict.fromkeys(hints))
     if hints:
         failure["advice"] = hints

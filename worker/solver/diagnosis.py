@@ -103,7 +103,10 @@ def advice(document: Mapping[str, Any], options: ScpRunOptions) -> list[str]:
             "still moving; or start from a neighbouring answer (initial_guess)"
         )
     elif code == "time_limit":
-        out.append(f"raise method.time_limit_s (it was {options.time_limit_s:g} s)")
+        out.append(
+            f"raise method.time_limit_s (it was {options.time_limit_s:g} s of CPU time), or "
+            "start from a neighbouring answer (initial_guess)"
+        )
     elif code == "diverged":
         out.append(
             "a step left the physical range: give a heavier trust region (method options), "

@@ -24,6 +24,8 @@ from typing import Any, Literal, get_args
 import numpy as np
 import numpy.typing as npt
 
+from worker.solver.solve_clock import SolveClock
+
 FloatArray = npt.NDArray[np.float64]
 
 Algorithm = Literal["ga", "pso"]
@@ -42,15 +44,16 @@ _CONVERGENCE_PERIOD = 30
 
 @dataclass(frozen=True)
 class SearchBudget:
-    """How much a search may spend: candidate evaluations and, optionally, wall seconds (both
-    checked between generations, so the last generation runs to its end)."""
+    """How much a search may spend: candidate evaluations and, optionally, CPU seconds of the
+    process (``solve_clock``, with its wall-clock safety; both checked between generations, so
+    the last generation runs to its end)."""
 
     max_evaluations: int = 4000
     """Stop once this many candidates have been scored (> 0); the last generation may pass it
     by less than one population."""
     time_limit_s: float | None = None
-    """Stop at the end of the first generation that ends this many wall seconds after the start
-    (> 0); None: no limit."""
+    """Stop at the end of the first generation that ends with this many CPU seconds spent since
+    the start (> 0), or ``WALL_FACTOR`` times as many wall seconds; None: no limit."""
 
     def __post_init__(self) -> None:
         """Reject a budget that cannot be spent (a ValueError naming the field)."""
@@ -68,7 +71,7 @@ so a search asked for more than its job allows still hands the method a start in
 
 
 def search_seconds(asked_s: float, job_limit_s: float) -> float:
-    """The wall seconds a search asked for ``asked_s`` may take in a job of ``job_limit_s``."""
+    """The CPU seconds a search asked for ``asked_s`` may take in a job of ``job_limit_s``."""
     return min(asked_s, JOB_SHARE * job_limit_s)
 
 
@@ -233,6 +236,7 @@ def global_search(
     )
 
     start = time.perf_counter()
+    clock = SolveClock.start(budget.time_limit_s) if budget.time_limit_s is not None else None
     np_state, py_state = np.random.get_state(), random.getstate()
     try:
         search.setup(_BoxProblem(), termination=converged, seed=int(seed), verbose=False)
@@ -242,7 +246,7 @@ def global_search(
             history.append(tally.best_f)
             if progress is not None:
                 progress(len(history), tally.best_f)
-            stopped_by = _stop_reason(tally.evaluations, start, budget, search)
+            stopped_by = _stop_reason(tally.evaluations, clock, budget, search)
             if stopped_by is not None:
                 break
     finally:
@@ -265,12 +269,12 @@ def global_search(
 
 
 def _stop_reason(
-    evaluations: int, start: float, budget: SearchBudget, search: Any
+    evaluations: int, clock: SolveClock | None, budget: SearchBudget, search: Any
 ) -> StopReason | None:
     """Why the search stops after this generation, in that order of precedence, or None."""
     if evaluations >= budget.max_evaluations:
         return "evaluations"
-    if budget.time_limit_s is not None and time.perf_counter() - start >= budget.time_limit_s:
+    if clock is not None and clock.expired() is not None:
         return "time"
     if search.termination.has_terminated():
         return "converged"

@@ -51,7 +51,10 @@ class ScpRunOptions(BoundedOptions):
         120.0,
         gt=0,
         le=MAX_TIME_LIMIT_S,
-        description=f"Wall-clock limit of the whole solve, s, in (0, {MAX_TIME_LIMIT_S:g}].",
+        description="CPU-time limit of the solve, s of the solving process's CPU time (all its "
+        "threads: the answer does not depend on other processes' load), in "
+        f"(0, {MAX_TIME_LIMIT_S:g}]; a wall-clock safety limit of 4 x as many seconds also ends "
+        "it.",
     )
     conic_backend: Literal["clarabel", "cvxpy"] = Field(
         "clarabel",
@@ -66,5 +69,6 @@ class ScpRunOptions(BoundedOptions):
         None,
         gt=0,
         le=MAX_TIME_LIMIT_S,
-        description="Wall-clock limit of each convex subproblem, s; none = only the overall limit.",
+        description="Wall-clock limit of each convex subproblem, s; none = only the overall "
+        "limits.",
     )

@@ -53,12 +53,12 @@ class EnergyScpOptions(ScpRunOptions):
         "iterations (diverged, numerical_error).",
     )
     max_iterations: int = Field(
-        60,
+        200,
         ge=1,
         le=MAX_ITERATIONS,
         description=f"Most SCP iterations, 1..{MAX_ITERATIONS} (the relaxed trust region and "
-        "the stationarity test need more than the paper's fixed weight: 20-50 on the variant "
-        "suite).",
+        "the stationarity test need more than the paper's fixed weight: 15-46 on the variant "
+        "suite, 42-163 on user-like problems, bench/iteration_budgets.py).",
     )
     grid: Literal["time_adaptive", "uniform"] = Field(
         "time_adaptive",

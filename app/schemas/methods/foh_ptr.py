@@ -7,7 +7,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from app.schemas.base import FieldProblem, raise_problems
-from app.schemas.limits import MAX_NODES
+from app.schemas.limits import MAX_ITERATIONS, MAX_NODES
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 
 MIN_NODES = 9
@@ -60,6 +60,13 @@ class FohPtrOptions(ScpRunOptions):
         f"{MIN_NODES} is the fewest with which the method starts on its built-in flights: "
         "with fewer, intervals of more than 200 s of a 1600 s flight, its constant-bank guess "
         "(two RK4 steps per interval) blows up and the first subproblem breaks down.",
+    )
+    max_iterations: int = Field(
+        100,
+        ge=1,
+        le=MAX_ITERATIONS,
+        description=f"Most SCP iterations of each start, 1..{MAX_ITERATIONS} (at most 43 a start "
+        "on the variant suite, 20-74 on user-like problems, bench/iteration_budgets.py).",
     )
     grid: Literal["adaptive", "uniform"] = Field(
         "adaptive",

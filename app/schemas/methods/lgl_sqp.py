@@ -46,7 +46,13 @@ class LglSqpOptions(ScpRunOptions):
         le=2000,
         description="Most SQP iterations (paper 004's case from a GA/PSO guess: 100-250).",
     )
-    time_limit_s: float = Field(900.0, gt=0, le=3600, description="Wall-clock limit, s.")
+    time_limit_s: float = Field(
+        900.0,
+        gt=0,
+        le=3600,
+        description="CPU-time limit of the solve, s of the solving process's CPU time (all its "
+        "threads); a wall-clock safety limit of 4 x as many seconds also ends it.",
+    )
     initial_guess: Literal["global", "constant"] = Field(
         "global",
         description="global: the GA/PSO search of global_guess; constant: each phase flown with "

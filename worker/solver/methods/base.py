@@ -3,7 +3,6 @@ the support checks methods share (field issues for features they cannot handle).
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Generic, Protocol, TypedDict, TypeVar
@@ -22,6 +21,7 @@ from worker.solver.scp.loop import (
     StopCheck,
     run_scp,
 )
+from worker.solver.solve_clock import SolveClock
 from worker.solver.trajectory import OptimizedTrajectory, PhasedTrajectory
 
 Options = TypeVar("Options", bound=ScpRunOptions)
@@ -102,26 +102,26 @@ def run_method(
     options: ScpRunOptions,
     hooks: RunHooks,
     *,
-    clock_start: float | None = None,
+    clock: SolveClock | None = None,
     offset: int = 0,
 ) -> MethodResult:
     """Build a method (its set-up counts against the time limit) and run it on the shared driver
-    with the budgets and conic backend of its options; ``clock_start``: when the time limit's
-    clock started (default: now); ``offset``: iterations of the history before this run (its
-    messages name iterations in the history's numbering)."""
-    start = time.perf_counter() if clock_start is None else clock_start
+    with the budgets and conic backend of its options; ``clock``: the time limit's clock
+    (default: started now, CPU seconds); ``offset``: iterations of the history before this run
+    (its messages name iterations in the history's numbering)."""
+    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
+    clock = clock or budget.clock()
     method = build()
     backend = hooks.get("backend") or make_backend(
         options.conic_backend, fallback=options.fallback_solver
     )
-    budget = Budget(options.max_iterations, options.time_limit_s, options.conic_time_limit_s)
     outcome = run_scp(
         method,
         budget,
         backend,
         on_iteration=hooks.get("on_iteration"),
         should_stop=hooks.get("should_stop"),
-        start=start,
+        clock=clock,
         offset=offset,
     )
     ref = outcome.reference
@@ -155,7 +155,7 @@ def run_starts(
     The failure message of a run of several starts names the start it is about and where that
     start's iterations are in the history.
     """
-    clock = time.perf_counter()
+    clock = SolveClock.start(options.time_limit_s)
     sink = hooks.get("on_iteration")
     results: list[MethodResult] = []
     offset = 0
@@ -181,7 +181,7 @@ def run_starts(
                 sink(streamed[-1])
 
         run_hooks: RunHooks = {**hooks, "on_iteration": forward}
-        result = run_method(build, options, run_hooks, clock_start=clock, offset=offset)
+        result = run_method(build, options, run_hooks, clock=clock, offset=offset)
         # the driver streams every record of its history, in order, and a diverging one that
         # it does not keep: the streamed records are the history, that one kept with its start
         result.history = seen

@@ -29,6 +29,7 @@ import numpy as np
 from worker.solver.conic import ConeProblem, ConicBackend, ConicSolution, ConicStatus
 from worker.solver.scp.divergence import divergence
 from worker.solver.scp.history import IterationRecord
+from worker.solver.solve_clock import SolveClock
 
 ScpStatus = Literal["converged", "max_iterations", "failed", "cancelled", "timed_out"]
 IterationSink = Callable[[IterationRecord], None]
@@ -137,11 +138,17 @@ class ScpOutcome(Generic[Ref]):
 
 @dataclass(frozen=True)
 class Budget:
-    """Iteration and time budgets of one run (the method options' shared fields)."""
+    """Iteration and time budgets of one run (the method options' shared fields):
+    ``time_limit_s`` in CPU seconds of the process (``solve_clock``), a conic solve's own limit
+    in wall seconds."""
 
     max_iterations: int
     time_limit_s: float
     conic_time_limit_s: float | None = None
+
+    def clock(self) -> SolveClock:
+        """A clock of this budget's time limit, started now."""
+        return SolveClock.start(self.time_limit_s)
 
 
 def conic_limit(remaining_s: float, cap_s: float | None) -> float:
@@ -174,17 +181,17 @@ def run_scp(
     *,
     on_iteration: IterationSink | None = None,
     should_stop: StopCheck | None = None,
-    start: float | None = None,
+    clock: SolveClock | None = None,
     offset: int = 0,
 ) -> ScpOutcome[Ref]:
     """Run ``method`` until it converges, fails, is stopped or runs out of its budget.
 
-    ``start`` is when the clock of ``budget.time_limit_s`` started (default: now); ``offset``:
-    iterations of the history before this run (a later start of a multi-start run), by which
-    the iterations its messages name are shifted into the history's numbering.
+    ``clock`` measures ``budget.time_limit_s`` (default: started now; a multi-start run shares
+    one); ``offset``: iterations of the history before this run (a later start of a multi-start
+    run), by which the iterations its messages name are shifted into the history's numbering.
     """
-    t0 = time.perf_counter() if start is None else start
-    deadline = t0 + budget.time_limit_s
+    clock = clock or budget.clock()
+    deadline = clock.wall_deadline
     history: list[IterationRecord] = []
     conic_total = 0.0
 
@@ -209,12 +216,10 @@ def run_scp(
         it_start = time.perf_counter()
         if should_stop is not None and should_stop():
             return outcome("cancelled", "cancelled", f"cancelled before iteration {offset + it}")
-        remaining = deadline - it_start
-        if remaining <= 0:
+        expired = clock.expired()
+        if expired is not None:
             return outcome(
-                "timed_out",
-                "time_limit",
-                f"time limit {budget.time_limit_s} s reached after {it - 1} iterations",
+                "timed_out", "time_limit", f"{expired} reached after {it - 1} iterations"
             )
         if linearization is None:
             linearization = method.linearize(reference)
@@ -227,7 +232,7 @@ def run_scp(
                 f"iteration {offset + it}: the subproblem about the reference has non-finite "
                 f"{broken} (the linearization broke down)",
             )
-        limit = conic_limit(remaining, budget.conic_time_limit_s)
+        limit = conic_limit(clock.remaining_s(), budget.conic_time_limit_s)
         solution = method.solve(problem, conic, limit, deadline)
         if not solution.status.usable or solution.x is None:
             code = _FAILURE_CODES.get(solution.status, "numerical_error")

@@ -27,6 +27,7 @@ from worker.solver.phase_search import Parameterization, constant_params
 from worker.solver.phased_problem import PhasedProblem
 from worker.solver.scp.history import IterationRecord
 from worker.solver.scp.loop import IterationSink, StopCheck
+from worker.solver.solve_clock import SolveClock
 from worker.solver.trajectory import TIME_STATE_NAMES, PhasedTrajectory
 from worker.solver.transcription.lgl import LglMesh
 
@@ -180,7 +181,9 @@ def sqp_failure_lead(
             failed = options.max_iterations - sqp
             lead += f" ({failed} of them a failed QP, which leaves no record)"
     elif out.status == "timed_out":
-        lead = f"time limit {options.time_limit_s:g} s reached after {sqp} SQP iterations"
+        limit = (out.message or "").partition(" reached")[0]
+        limit = limit or f"CPU time limit {options.time_limit_s:g} s"
+        lead = f"{limit} reached after {sqp} SQP iterations"
     elif out.status == "cancelled":
         lead = f"cancelled after {sqp} SQP iterations"
     else:
@@ -324,7 +327,7 @@ def run(
     should_stop: StopCheck | None = None,
 ) -> MethodResult:
     """Guess, then SQP; the answer and its history."""
-    start = time.perf_counter()
+    clock = SolveClock.start(options.time_limit_s)
     nlp = PhasedNlp(problem, _meshes(problem, options))
     par = Parameterization(problem, options.global_guess.knots)
     history: list[IterationRecord] = []
@@ -404,7 +407,7 @@ def run(
     generations = len(history)
     out = solve_sqp(
         nlp, z0, settings, backend, on_iteration=on_sqp, should_stop=should_stop,
-        clock_start=start, offset=generations,
+        clock=clock, offset=generations,
     )  # fmt: skip
     refined_records = 0
     extra["sqp"] = {
@@ -421,7 +424,7 @@ def run(
         budget = max(options.max_iterations - len(out.iterations), 1)
         second = solve_sqp(
             refined, _on_mesh(nlp, refined, out.z), replace(settings, max_iterations=budget),
-            backend, on_iteration=on_sqp, should_stop=should_stop, clock_start=start,
+            backend, on_iteration=on_sqp, should_stop=should_stop, clock=clock,
             offset=stage.offset,
         )  # fmt: skip
         second.qp_solve_s += out.qp_solve_s

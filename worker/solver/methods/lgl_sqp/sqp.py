@@ -24,6 +24,7 @@ from worker.solver.conic.problem import ConeProblem, ConeSpec
 from worker.solver.conic.status import ConicStatus
 from worker.solver.methods.lgl_sqp.nlp import DYNAMICS_WEIGHT, Evaluation, PhasedNlp
 from worker.solver.scp.filter import NonMonotoneFilter
+from worker.solver.solve_clock import SolveClock
 
 Array = np.ndarray
 
@@ -168,13 +169,14 @@ def solve_sqp(
     *,
     on_iteration: Callable[[SqpIteration, Evaluation], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
-    clock_start: float | None = None,
+    clock: SolveClock | None = None,
     offset: int = 0,
 ) -> SqpOutcome:
-    """Run the SQP from ``z0`` (clipped into the bounds); ``offset``: records of the history
-    before this SQP, by which the iterations its messages name are shifted into the history's
-    numbering."""
-    start = time.perf_counter() if clock_start is None else clock_start
+    """Run the SQP from ``z0`` (clipped into the bounds); ``clock``: the time limit's clock
+    (default: ``settings.time_limit_s`` CPU seconds from now); ``offset``: records of the
+    history before this SQP, by which the iterations its messages name are shifted into the
+    history's numbering."""
+    clock = clock or SolveClock.start(settings.time_limit_s)
     z = np.clip(z0, nlp.lower, nlp.upper)
     ev = nlp.evaluate(z)
     weights = _row_weights(nlp)
@@ -192,11 +194,10 @@ def solve_sqp(
         if should_stop is not None and should_stop():
             out.status, out.message = "cancelled", "cancelled by the caller"
             break
-        if time.perf_counter() - start > settings.time_limit_s:
+        expired = clock.expired()
+        if expired is not None:
             out.status = "timed_out"
-            out.message = (
-                f"time limit {settings.time_limit_s:g} s reached after {it - 1} iterations"
-            )
+            out.message = f"{expired} reached after {it - 1} iterations"
             break
         now_max = max(
             float(np.max(np.abs(ev.eq))) if ev.eq.size else 0.0,
