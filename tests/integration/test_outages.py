@@ -250,7 +250,16 @@ def test_a_result_held_through_an_outage_outlives_the_jobs_hard_time_limit(
         client.close()
 
 
+@pytest.fixture
+def outage_outlasting_lease(outage_env: dict[str, str]) -> None:
+    """A lease of 20 s (renewed every 6.7 s) for this deployment, so an 8 s outage cannot
+    expire it: with the 2 s of the fault settings the API's sweeper, reconnected first, may
+    requeue the job the worker is still solving, a race this test is not about."""
+    outage_env["TRAJOPT_LEASE_S"] = "20"
+
+
 def test_a_worker_logs_a_database_outage_in_a_few_lines(
+    outage_outlasting_lease: None,
     outage_env: dict[str, str],
     outage_api: ApiServer,
     outage_workers: Workers,

@@ -33,7 +33,7 @@ from tests.integration.harness import (
 pytestmark = pytest.mark.slow
 
 CAP = 5
-WINDOW_S = 4
+WINDOW_S = 6
 PER_WINDOW = 10
 REJECTED_PER_WINDOW = 5
 QUICK = {"scenario": SCENARIO, "method": {"nodes": 41, "max_iterations": 2}}
