@@ -11,11 +11,15 @@ reason, except under CI, where it fails.
 
 The arithmetic is also that of the processor's code paths (``cpu_target``: numpy's SIMD level,
 whose float64 exp/log/sin differ by an ulp between levels, and the CPU the kernels are compiled
-for). On another processor the same code is checked on what rounding cannot move: status,
-failure code, iteration count, the verification's verdict, and the objective to rtol 1e-6
-(measured between an AVX2 and the recording machine: statuses, counts and verdicts equal,
-objectives within 5e-8; the SCP iterations carry an ulp into the later digits, so bitwise
-equality there is not expected).
+for). On another processor the same code is checked on what rounding moves little: status,
+failure code and the verification's verdict equal, the iteration count within
+``PORTABLE_ITERATIONS``, and the objective within ``PORTABLE_RTOL``. The SCP iterations carry an
+ulp into the later digits and a convergence test met one iteration earlier or later ends at
+another point within the stopping tolerance; measured on the cases, between the recording
+machine (Rocket Lake, AVX-512) and a Zen 3 machine (AVX2): every status, code and verdict equal,
+shuttle-max-crossrange 25 against 27 iterations and its crossrange
+2.6e-4 apart (34.1302 against 34.1391 deg; Betts' 34.1412), shuttle-skip-min-propellant's
+(failed) objective 1.2e-4 apart; the other 15 objectives within 5e-8.
 """
 
 from __future__ import annotations
@@ -37,8 +41,11 @@ from tests.golden.cases import (
 )
 
 CASES = cases()
-PORTABLE_RTOL = 1e-6
-"""Objective tolerance on another processor (measured drift 5e-8, module docstring)."""
+PORTABLE_RTOL = 1e-3
+"""Objective tolerance on another processor: about 4 x the largest drift measured (2.6e-4,
+module docstring), well inside the 0.5 % the methods are held to against their references."""
+PORTABLE_ITERATIONS = 3
+"""Iteration-count tolerance on another processor (2 measured, module docstring)."""
 
 
 def _first_difference(got: Any, want: Any, path: str = "") -> str | None:
@@ -85,6 +92,8 @@ def test_reproduces_golden_output(name: str) -> None:
     got = json.loads(json.dumps(solve(CASES[name]), sort_keys=True))
     if recorded_cpu != cpu_target():
         assert _portable(got) == _portable(want), f"{name}: recorded on {recorded_cpu}"
+        counts = len(got.get("history", [])), len(want.get("history", []))
+        assert abs(counts[0] - counts[1]) <= PORTABLE_ITERATIONS, f"{name}: iterations {counts}"
         assert _objective(got) == pytest.approx(_objective(want), rel=PORTABLE_RTOL, abs=0.0)
         return
     difference = _first_difference(got, want)
@@ -92,10 +101,10 @@ def test_reproduces_golden_output(name: str) -> None:
 
 
 def _portable(result: dict[str, Any]) -> tuple[Any, ...]:
-    """What an ulp of rounding cannot move: status, failure code, iterations, verdict."""
+    """What an ulp of rounding cannot move: status, failure code, verdict."""
     failure = result.get("failure") or {}
     verdict = (result.get("verification") or {}).get("feasible")
-    return (result["status"], failure.get("code"), len(result.get("history", [])), verdict)
+    return (result["status"], failure.get("code"), verdict)
 
 
 def _objective(result: dict[str, Any]) -> float | None:
