@@ -35,9 +35,10 @@ class AutoOptions(BoundedOptions):
         300.0,
         gt=0,
         le=MAX_TIME_LIMIT_S,
-        description="Wall-clock limit of the whole run, every attempt together, s, in (0, "
-        f"{MAX_TIME_LIMIT_S:g}]; each attempt gets what the earlier ones left (a method's own "
-        "time_limit_s in overrides caps its attempt).",
+        description="CPU-time limit of the whole run, every attempt together, s of the solving "
+        f"process's CPU time, in (0, {MAX_TIME_LIMIT_S:g}]; each attempt gets what the earlier "
+        "ones left (a method's own time_limit_s in overrides caps its attempt), and a "
+        "wall-clock safety limit of 4 x as many seconds ends the whole run.",
     )
     max_attempts: int = Field(
         3,

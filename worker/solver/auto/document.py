@@ -3,7 +3,6 @@ failure's), with every attempt, the combined history and timing, and why auto ch
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 from typing import Any, Protocol
 
@@ -12,6 +11,7 @@ from app.schemas.plausibility import PlausibilityWarning, plausibility_warnings
 from worker.solver.auto.outcome import Attempt, failure_of_none, most_informative
 from worker.solver.methods.selection import PREFERENCE, Selection, refusal_issues
 from worker.solver.result import input_provenance, validated
+from worker.solver.solve_clock import SolveClock
 
 
 class AutoRun(Protocol):
@@ -20,7 +20,7 @@ class AutoRun(Protocol):
     @property
     def auto(self) -> AutoOptions: ...
     @property
-    def start(self) -> float: ...
+    def clock(self) -> SolveClock: ...
     @property
     def attempts(self) -> Sequence[Attempt]: ...
     @property
@@ -68,7 +68,8 @@ def _timing(run: AutoRun) -> dict[str, Any]:
         "conic_solve_s": total("conic_solve_s"),
         "iterations": len(run.history),
         "verification_s": total("verification_s"),
-        "total_s": time.perf_counter() - run.start,
+        "cpu_s": run.clock.cpu_used_s(),
+        "total_s": run.clock.wall_used_s(),
     }
 
 

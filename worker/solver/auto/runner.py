@@ -11,7 +11,6 @@ The history holds every attempt's iterations numbered on, each tagged with its a
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
@@ -25,6 +24,7 @@ from worker.solver.auto.outcome import Attempt, Purpose, better, compare
 from worker.solver.methods import registry
 from worker.solver.methods.selection import Candidate, Selection, select, with_method
 from worker.solver.result import input_provenance, validated
+from worker.solver.solve_clock import WALL_FACTOR, SolveClock
 
 MIN_ATTEMPT_S = 1.0
 """Least time worth starting a further attempt with, s; with less left the run ends (the
@@ -62,14 +62,16 @@ class AutoRun:
         self.auto: AutoOptions = problem.method
         self.solve_one = solve_one
         self.hooks = hooks
-        self.start = time.perf_counter()
+        self.clock = SolveClock.start(self.auto.time_limit_s)
         self.attempts: list[Attempt] = []
         self.history: list[dict[str, Any]] = []
         self.stop: str | None = None
 
     def left(self) -> float:
-        """Seconds left of auto's budget."""
-        return self.auto.time_limit_s - (time.perf_counter() - self.start)
+        """CPU seconds left of auto's budget (``time_limit_s`` counts CPU time, as every
+        method's does), less when the wall-clock safety of the whole run is nearer."""
+        cpu_left = self.clock.cpu_limit_s - self.clock.cpu_used_s()
+        return min(cpu_left, self.clock.remaining_s() / WALL_FACTOR)
 
     def run(
         self,
