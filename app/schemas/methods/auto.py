@@ -47,12 +47,14 @@ class AutoOptions(BoundedOptions):
         description=f"Most methods tried for an answer, 1..{MAX_AUTO_ATTEMPTS} (the cross-check's "
         "run is not counted).",
     )
-    cross_check: bool = Field(
-        False,
-        description="After a success, run the next method that accepts the problem (or, when "
-        "there is none, the same method from a global-search start) and report both values; a "
-        "difference over 0.5 % is flagged (a local optimum is possible) and the better verified "
-        "answer is kept.",
+    cross_check: bool | None = Field(
+        None,
+        description="After a success, run the next methods that accept the problem until one "
+        "succeeds (or, when there is none, the same method from a global-search start) and "
+        "report both values; a difference over 0.5 % is flagged (a local optimum is possible) "
+        "and the better verified answer is kept. null: on for the problem classes known to "
+        "have several local optima (an objective on the final latitude or longitude: the turn "
+        "direction and bank-sign choices give separate optima), off otherwise.",
     )
     nodes: int | None = Field(
         None,

@@ -3,8 +3,10 @@
 Each attempt is a whole solve of the problem with one method (its optimization, verification
 and advice) and gets what the earlier attempts left of ``method.time_limit_s``. The first that
 succeeds (converged and verified) is the answer; a failure passes to the next method, at most
-``max_attempts``. With ``cross_check`` one more run follows a success (the next method that
-accepts the problem, else the same method from a second start) and both values are reported.
+``max_attempts``. With a cross-check (``cross_check``, by default on for the classes of
+``local_optima``) the next methods that accept the problem run after a success until one
+succeeds (at most two; with none left, the same method from a second start) and both values
+are reported.
 A stop (cancellation, the job's time limit) or the budget running out ends the whole run.
 The history holds every attempt's iterations numbered on, each tagged with its attempt.
 """
@@ -20,6 +22,7 @@ from app.schemas import ProblemDocument
 from app.schemas.methods import AutoOptions, ScpRunOptions
 from app.schemas.plausibility import plausibility_warnings
 from worker.solver.auto.document import assemble, refused
+from worker.solver.auto.local_optima import cross_check_wanted
 from worker.solver.auto.outcome import Attempt, Purpose, better, compare
 from worker.solver.methods import registry
 from worker.solver.methods.selection import Candidate, Selection, select, with_method
@@ -29,6 +32,10 @@ from worker.solver.solve_clock import WALL_FACTOR, SolveClock
 MIN_ATTEMPT_S = 1.0
 """Least time worth starting a further attempt with, s; with less left the run ends (the
 first attempt has the whole budget)."""
+MAX_CROSS_CHECK_RUNS = 2
+"""Most methods run for a cross-check: the next after the answer's, and one more when that one
+fails (Betts' Shuttle from a 60 deg heading: hp-scp stops at its iteration limit, lgl-sqp then
+finds the better optimum)."""
 
 
 class SolveOne(Protocol):
@@ -150,12 +157,20 @@ def second_start(
 
 
 def _cross_check(run: AutoRun, kept: Attempt, selection: Selection) -> dict[str, Any]:
-    """Run the cross-check after ``kept`` succeeded and compare the two values."""
+    """Run the cross-check after ``kept`` succeeded and compare the two values: the methods
+    after it in auto's order until one succeeds (at most ``MAX_CROSS_CHECK_RUNS``), else the
+    same method from a second start."""
     tried = {a.name for a in run.attempts}
     following = [c for c in selection.candidates if c.name not in tried]
-    if following:
-        other = run.run(following[0].name, following[0].options, "cross_check")
-    else:
+    other: Attempt | None = None
+    for candidate in following[:MAX_CROSS_CHECK_RUNS]:
+        ran = run.run(candidate.name, candidate.options, "cross_check")
+        if ran is None:
+            break
+        other = ran
+        if ran.succeeded or run.stop is not None:
+            break
+    if not following:
         chosen = next(c for c in selection.candidates if c.name == kept.name)
         start = second_start(run.problem, chosen)
         if start is None:
@@ -198,7 +213,7 @@ def solve_auto(problem: ProblemDocument, solve_one: SolveOne, **hooks: Any) -> d
         if run.stop is not None:
             break
     cross: dict[str, Any] | None = None
-    if kept is not None and run.auto.cross_check and run.stop is None:
+    if kept is not None and cross_check_wanted(problem) and run.stop is None:
         cross = _cross_check(run, kept, selection)
         other = run.attempts[-1]
         if other is not kept and other.succeeded:
