@@ -38,9 +38,12 @@ def _fields(raw: dict[str, Any]) -> set[str]:
     return {i.field for i in check_support(ProblemDocument.model_validate(raw))}
 
 
-def test_a_free_final_time_and_min_time_are_accepted() -> None:
+def test_a_free_final_time_is_accepted_and_min_time_is_not_yet() -> None:
+    """min_time is refused: with the interval trust weight of a fixed final time the method
+    stopped at 1361.9 s where the NLP reaches 1157.3 s (docs/methods/foh-ptr.md)."""
     assert _fields(_raw()) == set()
-    assert _fields(_raw(objective="min_time", final_time={"kind": "free", "max_s": 2000})) == set()
+    assert _fields(_raw(final_time={"kind": "free", "max_s": 2000})) == set()
+    assert _fields(_raw(objective="min_time")) == {"objective.terms[0].name"}
 
 
 def test_what_a_free_final_time_cannot_do_is_refused_with_its_field() -> None:
@@ -50,8 +53,6 @@ def test_what_a_free_final_time_cannot_do_is_refused_with_its_field() -> None:
     no_end = _raw()
     no_end["terminal"] = {"longitude_deg": 30, "latitude_deg": 55}
     assert _fields(no_end) == {"final_time"}
-    fixed_min_time = _raw(objective="min_time", final_time={"kind": "fixed", "value_s": 1400})
-    assert _fields(fixed_min_time) == {"final_time"}
 
 
 def test_the_sweep_ends_each_flight_at_the_terminal_altitude() -> None:

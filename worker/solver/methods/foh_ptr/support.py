@@ -17,7 +17,6 @@ NAME = "foh-ptr"
 OBJECTIVES = (
     "max_terminal_velocity",
     "min_heat_load",
-    "min_time",
     *FINAL_EXTREMES,
 )
 
@@ -43,11 +42,9 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
 
 def _final_time_issues(doc: ProblemDocument) -> list[FieldIssue]:
     """A free final time needs the adaptive grid (its interval lengths carry the flight time)
-    and a terminal altitude or speed to end the flight; min_time needs a free final time."""
+    and a terminal altitude or speed to end the flight."""
     options = doc.method
     if doc.final_time.kind == "fixed":
-        if any(t.name == "min_time" for t in doc.objective.terms):
-            return [issue("final_time", f"{NAME}: min_time needs a free final time")]
         return []
     out = []
     if isinstance(options, FohPtrOptions) and options.grid != "adaptive":
