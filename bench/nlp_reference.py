@@ -199,6 +199,11 @@ def main() -> None:
     args = parser.parse_args()
     doc = json.loads(args.document.read_text())
     given = [json.loads(path.read_text()) for path in args.start_from]
+    objective = doc["objective"]
+    if isinstance(objective, dict):
+        objective = objective["terms"]
+    name = objective if isinstance(objective, str) else objective[0]["name"]
+    sense = -1.0 if name.startswith("max_") else 1.0  # the best optimum of the starts
     runs: list[dict[str, Any]] = []
     best: list[tuple[float, EntryNlp, Any]] = []
     for intervals in args.meshes:
@@ -215,7 +220,7 @@ def main() -> None:
             runs.append(summary)
             print(json.dumps(summary), file=sys.stderr)
             ok = sol is not None and summary["ipopt_status"] == "Solve_Succeeded"
-            if ok and (kept is None or summary["objective"] < kept[0]):
+            if ok and (kept is None or sense * summary["objective"] < sense * kept[0]):
                 kept = (summary["objective"], nlp, sol)
         if kept is None:
             raise SystemExit(f"no start converged on {intervals} intervals")
