@@ -53,8 +53,8 @@ def test_the_order_places_every_method_once() -> None:
         # a fixed final time: foh-ptr first, cheb-scvx after it; zones do not change that
         ("rlv-max-terminal-velocity", {}, ["foh-ptr", "cheb-scvx"]),
         ("rlv-max-terminal-velocity-active-nfz", {}, ["foh-ptr", "cheb-scvx"]),
-        # the same with a free final time: only cheb-scvx flies it with a scheduled alpha
-        ("rlv-max-terminal-velocity", {"final_time": {"kind": "free"}}, ["cheb-scvx"]),
+        # the same with a free final time: foh-ptr's intervals carry it, then cheb-scvx
+        ("rlv-max-terminal-velocity", {"final_time": {"kind": "free"}}, ["foh-ptr", "cheb-scvx"]),
         # an optimized angle of attack: cheb-scvx, hp-scp, lgl-sqp
         ("shuttle-max-crossrange", {}, ["cheb-scvx", "hp-scp", "lgl-sqp"]),
         # its rate limit leaves hp-scp alone
@@ -107,6 +107,18 @@ def test_overrides_reach_the_method_they_name() -> None:
     assert cheb.options.max_iterations == type(cheb.options)().max_iterations
 
 
+def test_a_free_final_time_gets_autos_free_time_options_under_the_callers() -> None:
+    free = {"final_time": {"kind": "free"}}
+    foh, cheb = select(_auto("rlv-max-terminal-velocity", **free)).candidates
+    assert (foh.options.nodes, foh.options.max_iterations) == (80, 100)
+    assert cheb.options.nodes == type(cheb.options)().nodes  # none of its own
+    fixed = select(_auto("rlv-max-terminal-velocity")).candidates[0]
+    assert (fixed.options.nodes, fixed.options.max_iterations) == (40, 30)  # paper 002's
+    given = {"nodes": 60, "overrides": {"foh-ptr": {"max_iterations": 50}}}
+    foh = select(_auto("rlv-max-terminal-velocity", given, **free)).candidates[0]
+    assert (foh.options.nodes, foh.options.max_iterations) == (60, 50)
+
+
 def test_a_document_no_method_accepts_names_each_methods_reasons() -> None:
     """Fixed final time with min_control_effort: only hp-scp takes the objective, and it
     refuses a fixed final time."""
@@ -131,7 +143,7 @@ def test_the_capability_matrix_reads_the_checks() -> None:
     matrix = capability_matrix()
     assert list(matrix) == list(METHODS)
     assert matrix["energy-scp"]["final_time"] == {"free": True, "fixed": False}
-    assert matrix["foh-ptr"]["final_time"] == {"free": False, "fixed": True}
+    assert matrix["foh-ptr"]["final_time"] == {"free": True, "fixed": True}
     assert [n for n in matrix if matrix[n]["limits"]["waypoints"]] == ["cheb-scvx"]
     assert [n for n in matrix if matrix[n]["limits"]["alpha_rate_limit"]] == ["hp-scp"]
     assert [n for n in matrix if matrix[n]["aerodynamics"]["parabolic_polar"]] == ["cheb-scvx"]

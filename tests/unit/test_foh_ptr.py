@@ -149,13 +149,12 @@ def test_printed_case_2_zone_is_not_active() -> None:
 
 def test_support_check_refuses_what_it_cannot_do() -> None:
     raw = dict(get_scenario("rlv-max-terminal-velocity").problem)
-    raw["final_time"] = {"kind": "free"}
     raw["objective"] = "min_time"
     raw["waypoints"] = [
         {"latitude_deg": 30, "longitude_deg": 0, "radius_deg": 1, "order": 0},
     ]
     issues = {i.field for i in check_support(ProblemDocument.model_validate(raw))}
-    assert {"final_time", "objective.terms[0].name", "waypoints"} <= issues
+    assert {"objective.terms[0].name", "waypoints"} <= issues
     assert check_support(_doc()) == []
 
 

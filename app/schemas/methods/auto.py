@@ -105,12 +105,15 @@ class AutoOptions(BoundedOptions):
             raise ValidationError.from_exception_data(type(self).__name__, details)
         return self
 
-    def options_for(self, name: str) -> ScpRunOptions:
-        """The options of method ``name`` when auto tries it: its defaults, then ``nodes``,
-        then its overrides. Raises ``ValidationError`` when the method cannot take them (e.g.
-        too few nodes for it)."""
+    def options_for(self, name: str, defaults: dict[str, Any] | None = None) -> ScpRunOptions:
+        """The options of method ``name`` when auto tries it: its defaults, then auto's own
+        ``defaults`` for it (the rule's, for the problem's class), then ``nodes``, then its
+        overrides. Raises ``ValidationError`` when the method cannot take them (e.g. too few
+        nodes for it)."""
         from app.schemas.methods import METHOD_OPTIONS
 
-        given: dict[str, Any] = {"nodes": self.nodes} if self.nodes is not None else {}
+        given: dict[str, Any] = dict(defaults or {})
+        if self.nodes is not None:
+            given["nodes"] = self.nodes
         given.update(self.overrides.get(name, {}))
         return METHOD_OPTIONS[name].model_validate({**given, "name": name})

@@ -6,7 +6,8 @@ which names every feature it cannot handle) finds nothing, run on the document w
 method's options as auto would try it. The methods that accept are tried in the one order of
 :data:`PREFERENCE`; each entry says why it stands where it does. Because each method refuses
 what it cannot fly, this order yields the feature rules: phases or propulsion -> lgl-sqp; a
-fixed final time -> foh-ptr, then cheb-scvx; zones -> foh-ptr (fixed time) or cheb-scvx, then
+fixed final time -> foh-ptr, then cheb-scvx; a free final time beyond energy-scp's class ->
+foh-ptr (a scheduled angle of attack), then cheb-scvx; zones -> foh-ptr or cheb-scvx, then
 hp-scp; an optimized angle of attack -> cheb-scvx, hp-scp, lgl-sqp; energy-scp on its own
 class (free final time, a scheduled angle of attack, no zones, waypoints or rate limits).
 """
@@ -39,8 +40,9 @@ PREFERENCE: tuple[Preference, ...] = (
     ),
     Preference(
         "foh-ptr",
-        "the method built on a fixed final time (its grid spans it); zones, a bank-rate "
-        "limit and an asymmetric bank range; about a second on its paper's cases",
+        "a fixed final time (paper 002's grid spans it) or a free one (its interval lengths "
+        "as time dilations); zones, a bank-rate limit and an asymmetric bank range; about a "
+        "second on its paper's cases, a few seconds on a free final time",
     ),
     Preference(
         "cheb-scvx",
@@ -59,6 +61,12 @@ PREFERENCE: tuple[Preference, ...] = (
     ),
 )
 """Every method, in the order auto tries those that accept a document."""
+
+FREE_TIME_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 80, "max_iterations": 100}}
+"""Auto's options of a method on a free final time, before the caller's ``nodes`` and
+overrides: foh-ptr's 40 nodes and 30 iterations per start are paper 002's, on its fixed-time
+flights; a free-time minimum heat load skips, and its bank pulses need finer intervals and more
+iterations (docs/methods/foh-ptr.md, "Free final time", measured)."""
 
 
 @dataclass(frozen=True)
@@ -113,8 +121,9 @@ def select(doc: ProblemDocument) -> Selection:
     candidates: list[Candidate] = []
     refused: dict[str, list[FieldIssue]] = {}
     for name, reason in PREFERENCE:
+        defaults = FREE_TIME_OPTIONS.get(name) if doc.final_time.kind == "free" else None
         try:
-            options = auto.options_for(name)
+            options = auto.options_for(name, defaults)
             unfit: list[FieldIssue] = []
         except ValidationError as exc:  # e.g. auto's nodes too few for it: what else it refuses
             options = METHOD_OPTIONS[name].model_validate({"name": name})

@@ -14,12 +14,15 @@ Array = np.ndarray
 
 @dataclass(frozen=True)
 class GridLimits:
-    """Adaptive-grid bounds (nondimensional time): Delta_min, Delta_max, DeltaT_max, t_f."""
+    """Adaptive-grid bounds (nondimensional time): Delta_min, Delta_max, DeltaT_max, and t_f
+    when the final time is fixed (None: free, the sum of the intervals a decision variable,
+    at most ``final_time_max`` when given)."""
 
     delta_min: float
     delta_max: float
     delta_trust: float
-    final_time: float
+    final_time: float | None
+    final_time_max: float | None = None
 
 
 @dataclass

@@ -2,7 +2,8 @@
 
 Equalities: the stitched interval dynamics E dz_{k+1} = Phi dz_k + B- dw_k + B+ dw_{k+1} + S ds_k
 + (x_prop - z_bar_{k+1}) (eq. 24, rows divided by the state scale), the initial state, the fixed
-terminal states and, on the adaptive grid, sum s_k = t_f (eq. 12). Nonnegative rows:
+terminal states and, on the adaptive grid with a fixed final time, sum s_k = t_f (eq. 12); with
+a free final time the sum is free (time dilation per interval), at most t_f,max. Nonnegative rows:
 |sigma| <= sigma_max at the nodes and where the bank turns between them, |w| <= w_max, the
 linearized log path limits (eq. 25-26), the linearized no-fly zones (eq. 27), the between-node
 rows, their L1 buffers, Delta_min <= s_k <= Delta_max with |s_k - s_bar_k| <= DeltaT_max
@@ -93,7 +94,7 @@ def equality_blocks(sub: FohSubproblem) -> list[Block]:
             rhs=lambda d: (values - d.z[-1, states]) * inv[states],
         )
     )
-    if sub.grid is not None:
+    if sub.grid is not None and sub.grid.final_time is not None:
         final_time = sub.grid.final_time
         blocks.append(
             Block(
@@ -291,6 +292,17 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
                         np.minimum(d.s - g.delta_min, g.delta_trust),
                     ]
                 ),
+            )
+        )
+    if sub.grid is not None and sub.grid.final_time is None and sub.grid.final_time_max is not None:
+        latest = sub.grid.final_time_max
+        blocks.append(
+            Block(
+                "final_time_max",
+                "nonneg",
+                1,
+                (Term(np.zeros(N, dtype=np.int64), sub.col_s, sub.Ds),),
+                rhs=lambda d: np.array([latest - float(np.sum(d.s))]),
             )
         )
     last = col_z[-1]

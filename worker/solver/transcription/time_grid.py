@@ -3,7 +3,10 @@
 The initial reference is the propagation of the nonlinear dynamics under a constant bank (the
 paper's "given initial control") on a uniform grid. When no bank is given, a sweep of constant
 banks is propagated at once (vectorized over candidates) and the one ending closest to the
-terminal conditions, without reaching the ground, is kept.
+terminal conditions, without reaching the ground, is kept. With a free final time the sweep is
+flown on a fine grid until it first reaches the terminal altitude (or speed): each bank's
+crossing time is its flight time, and the kept bank's crossing time is the reference's final
+time, so that no final time has to be guessed.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ GUESS_SUBSTEPS = 2  # RK4 steps per interval: the guess only has to be a sensibl
 SWEEP_DEG = np.arange(-60.0, 61.0, 10.0)
 # miss units of the sweep's score: 5 km, 5 deg, 500 m/s, 5 deg, 5 deg
 MISS_UNIT = np.array([5e3, 5.0, 5.0, 500.0, 5.0, 5.0])
+FREE_STEP_S = 5.0  # interval of the free-final-time sweep's fine grid (two RK4 steps each)
+FREE_HORIZON_S = 6000.0  # longest flight the sweep looks at when the final time is unbounded
 
 
 class InitialGuessError(ValueError):
@@ -134,9 +139,11 @@ def sign_start_banks(problem: EntryProblem, nodes: int) -> list[float]:
     selects between local optima of the same problem (paper 002 case 1 at 120 nodes: 969.8 m/s
     from +20 deg, 970.8 m/s from -10 deg); one start per sign lets the better one be kept.
     """
-    assert problem.final_time is not None
     candidates = _sweep_candidates(problem)
-    _, score = _sweep(problem, candidates, uniform_intervals(problem.final_time, nodes))
+    if problem.final_time is None:
+        score, _ = free_sweep(problem, candidates)
+    else:
+        _, score = _sweep(problem, candidates, uniform_intervals(problem.final_time, nodes))
     best = int(np.argmin(score))
     if not np.isfinite(score[best]) or candidates[best] == 0.0:
         return [float(candidates[best])]
@@ -150,9 +157,8 @@ def sign_start_banks(problem: EntryProblem, nodes: int) -> list[float]:
 def initial_reference(
     problem: EntryProblem, nodes: int, initial_bank_deg: float | None
 ) -> Reference:
-    """The propagated constant-bank reference on a uniform grid (paper 002 sec. 4)."""
-    assert problem.final_time is not None
-    s = uniform_intervals(problem.final_time, nodes)
+    """The propagated constant-bank reference on a uniform grid (paper 002 sec. 4); with a free
+    final time, over the flight time of the kept bank (``free_sweep``)."""
     fixed_bank = problem.initial_bank_deg
     if initial_bank_deg is not None:
         candidates = np.array([initial_bank_deg])
@@ -160,6 +166,19 @@ def initial_reference(
         candidates = np.array([fixed_bank])
     else:
         candidates = _sweep_candidates(problem)
+    if problem.final_time is None:
+        free_score, times = free_sweep(problem, candidates)
+        best = int(np.argmin(free_score))
+        if not np.isfinite(free_score[best]):
+            raise InitialGuessError(
+                "no constant-bank flight of the sweep reaches the terminal altitude (or speed) "
+                "above the ground within the time looked at; give method.initial_bank_deg, an "
+                "initial_guess, or final_time.max_s"
+            )
+        candidates = candidates[best : best + 1]
+        s = uniform_intervals(float(times[best]), nodes)
+    else:
+        s = uniform_intervals(problem.final_time, nodes)
     z, score = _sweep(problem, candidates, s)
     best = int(np.argmin(score))
     if not np.isfinite(score[best]):
@@ -179,8 +198,9 @@ def guess_reference(problem: EntryProblem, nodes: int) -> Reference:
     """The caller's initial guess (``problem.guess``) on a uniform grid: its states and bank
     interpolated in time scaled to the final time, the given initial state and bank at the
     first node, the bank within its range and its rate the guess's slope (within its bound)."""
-    assert problem.final_time is not None and problem.guess is not None
-    s = uniform_intervals(problem.final_time, nodes)
+    assert problem.guess is not None
+    final_time = problem.final_time  # a free final time: the guess's own duration
+    s = uniform_intervals(float(problem.guess.t[-1]) if final_time is None else final_time, nodes)
     t = np.concatenate([[0.0], np.cumsum(s)])
     y, bank = problem.guess.on_times(t)
     y[0] = problem.y0
@@ -191,3 +211,57 @@ def guess_reference(problem: EntryProblem, nodes: int) -> Reference:
     if problem.bank_rate_max is not None:
         w = np.clip(w, -problem.bank_rate_max, problem.bank_rate_max)
     return Reference(z=np.column_stack([y, bank]), w=w, s=s, bank_deg=math.degrees(bank[0]))
+
+
+def _end_condition(problem: EntryProblem) -> tuple[int, float]:
+    """The state (0: radius, 3: speed) whose terminal target ends a free-time flight, and that
+    target (nondimensional); the altitude's when it has one."""
+    for j, name in ((0, "altitude_m"), (3, "velocity_m_s")):
+        target = problem.terminal[name].target()
+        if target is not None:
+            return j, target
+    raise InitialGuessError(
+        "a free final time needs a terminal altitude or speed to end the flight; give "
+        "terminal.altitude_m"
+    )
+
+
+def free_sweep(problem: EntryProblem, candidates: Array) -> tuple[Array, Array]:
+    """Each constant bank's (deg) miss of the terminal targets where its flight first falls to
+    the terminal altitude (or speed), and the time it does (nondimensional; inf and nan when it
+    never does above the ground within ``final_time_max`` or the sweep's horizon)."""
+    sc = problem.scales
+    horizon = (
+        problem.final_time_max if problem.final_time_max is not None else FREE_HORIZON_S / sc.time_s
+    )
+    steps = max(math.ceil(horizon * sc.time_s / FREE_STEP_S), 1)
+    s = uniform_intervals(horizon, steps + 1)
+    z = propagate_constant_bank(problem, np.radians(candidates), s)
+    j, target = _end_condition(problem)
+    t = np.concatenate([[0.0], np.cumsum(s)])
+    score = np.full(candidates.size, np.inf)
+    times = np.full(candidates.size, np.nan)
+    for c in range(candidates.size):
+        path = z[c, :, j]
+        below = np.flatnonzero(~(path > target))  # also a non-finite (grounded) node
+        if below.size == 0 or below[0] == 0 or not np.isfinite(path[below[0]]):
+            continue
+        k = int(below[0])
+        frac = (path[k - 1] - target) / (path[k - 1] - path[k])
+        end = z[c, k - 1] + frac * (z[c, k] - z[c, k - 1])
+        score[c] = _miss(problem, end[None, :])[0]
+        times[c] = t[k - 1] + frac * (t[k] - t[k - 1])
+    return score, times
+
+
+FALLBACK_SPAN_S = 1600.0
+"""Flight time that scales the grid bounds of a free final time whose start failed (paper
+002's; the method then stops at once with the start's reason)."""
+
+
+def free_time_span(problem: EntryProblem, first: Reference | InitialGuessError) -> float:
+    """The flight time (nondimensional) a free final time's grid bounds scale with: that of the
+    initial reference."""
+    if isinstance(first, InitialGuessError):
+        return FALLBACK_SPAN_S / problem.scales.time_s
+    return float(np.sum(first.s))

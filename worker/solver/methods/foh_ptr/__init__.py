@@ -12,7 +12,7 @@ METHOD = MethodInfo(
     paper="Ma, Chen, Wang & Zhang, Real-Time Trajectory Planning for Hypersonic Entry Using "
     "Adaptive Non-Uniform Discretization and Convex Optimization (paper 002)",
     features=(
-        "time as independent variable, fixed final time",
+        "time as independent variable, fixed or free final time (intervals as time dilations)",
         "bank angle as a state, bank rate as the control (first-order hold)",
         "inverse-free exact FOH discretization stitched to the propagated reference",
         "adaptive non-uniform grid (interval lengths as decision variables)",

@@ -39,6 +39,8 @@ from worker.solver.transcription.foh_subproblem import FohSubproblem
 from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import (
     InitialGuessError,
+    Reference,
+    free_time_span,
     guess_reference,
     initial_reference,
     sign_start_banks,
@@ -90,22 +92,29 @@ class FohPtr:
     def __init__(
         self, problem: EntryProblem, options: FohPtrOptions, start_bank_deg: float | None = None
     ) -> None:
-        if problem.final_time is None:
-            raise ValueError("foh-ptr needs a fixed final time")
         self.problem, self.options = problem, options
         self.start_bank_deg = options.initial_bank_deg if start_bank_deg is None else start_bank_deg
         layout = Linearizer.layout
         sc = problem.scales
         self.scale = layout.trust_units(sc)
         self.lin = Linearizer(problem, options, self.scale)
-        span_s = problem.final_time * sc.time_s
+        self.first: Reference | InitialGuessError = self._first_reference()
+        span = (
+            problem.final_time
+            if problem.final_time is not None
+            else free_time_span(problem, self.first)
+        )
+        span_s = span * sc.time_s
         lo, hi, trust = interval_bounds(options, span_s)
+        if options.grid == "uniform" and problem.final_time is None:
+            raise ValueError("a free final time needs the adaptive grid")
         grid = (
             GridLimits(
                 delta_min=lo / sc.time_s,
                 delta_max=hi / sc.time_s,
                 delta_trust=trust / sc.time_s,
                 final_time=problem.final_time,
+                final_time_max=problem.final_time_max,
             )
             if options.grid == "adaptive"
             else None
@@ -163,16 +172,26 @@ class FohPtr:
     def start(self) -> FohIterate:
         """The caller's initial guess on the grid, else the constant-bank reference that best
         meets the terminal conditions."""
+        ref = self.first
+        if isinstance(ref, InitialGuessError):  # the method cannot start: a failed job
+            raise scp.StartError("initial_guess", str(ref)) from ref
         if self.problem.guess is not None:  # the caller's earlier answer
-            ref = guess_reference(self.problem, self.options.nodes)
             self.extra["initial_guess"] = "trajectory"
-            return FohIterate(ref.z, ref.w, ref.s)
-        try:
-            ref = initial_reference(self.problem, self.options.nodes, self.start_bank_deg)
-        except InitialGuessError as exc:  # the method cannot start: a failed job, not an error
-            raise scp.StartError("initial_guess", str(exc)) from exc
-        self.extra["initial_bank_deg"] = ref.bank_deg
+        else:
+            self.extra["initial_bank_deg"] = ref.bank_deg
+        if self.problem.final_time is None:
+            self.extra["initial_final_time_s"] = float(np.sum(ref.s)) * self.problem.scales.time_s
         return FohIterate(ref.z, ref.w, ref.s)
+
+    def _first_reference(self) -> Reference | InitialGuessError:
+        """The initial reference (``start``), or why there is none; made at construction
+        because a free final time's grid bounds scale with its flight time."""
+        if self.problem.guess is not None:
+            return guess_reference(self.problem, self.options.nodes)
+        try:
+            return initial_reference(self.problem, self.options.nodes, self.start_bank_deg)
+        except InitialGuessError as exc:
+            return exc
 
     def linearize(self, reference: FohIterate) -> Linearization:
         """Subproblem data about ``reference`` (``Linearizer.data``)."""
@@ -310,7 +329,7 @@ class FohPtr:
 
 
 def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]) -> MethodResult:
-    """Run paper 002's SCP on ``problem`` (fixed final time) with its ``options``."""
+    """Run paper 002's SCP on ``problem`` (fixed or free final time) with its ``options``."""
     if compiled_parameters(problem.forces, problem.omega) is not None:
         warm_up()  # compile or load the kernels before the clock starts (at once when loaded)
     free_bank = (

@@ -2,8 +2,9 @@
 
 Terminal terms (paper 002 Problem 1: J = -V(t_f); also extreme final latitude or longitude) enter
 through the last node; the heat load is the trapezoid over the nodes with the interval lengths s_k,
-so it depends on s as well as on (r, V). Each term is normalized so a unit change of the scaled
-variable (terminal terms) or 1 % of the initial reference's heat load costs 1.
+so it depends on s as well as on (r, V); the flight time (a free final time) is the sum of the
+interval lengths. Each term is normalized so a unit change of the scaled variable (terminal
+terms) or 1 % of the initial reference's heat load or flight time costs 1.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ TERMINAL_TERMS: dict[str, tuple[int, float]] = {  # name -> (state index, sign o
     "max_final_longitude": (1, -1.0),
     "min_final_longitude": (1, 1.0),
 }
-RUNNING_TERMS = ("min_heat_load",)
+RUNNING_TERMS = ("min_heat_load", "min_time")
 OBJECTIVES = (*TERMINAL_TERMS, *RUNNING_TERMS)
 
 
@@ -45,6 +46,7 @@ class TimeObjective:
         self.problem = problem
         self.scale = np.asarray(state_scale, dtype=float)
         self.heat_unit = 1.0
+        self.time_unit = 0.01 * float(np.sum(s)) * problem.scales.time_s
         for term in problem.objective:
             if term.name not in OBJECTIVES:
                 raise ValueError(f"objective {term.name!r} is not supported in the time domain")
@@ -63,7 +65,7 @@ class TimeObjective:
             idx, _ = TERMINAL_TERMS[name]
             scale = float(self.scale[idx])
             return scale * self.problem.scales.speed_m_s if idx == 3 else math.degrees(scale)
-        return self.heat_unit
+        return self.time_unit if name == "min_time" else self.heat_unit
 
     def _heat(self, z: Array, ft: ForceTerms) -> tuple[Array, Array, Array]:
         if self.problem.heat_model is None:
@@ -84,6 +86,8 @@ class TimeObjective:
             if term.name in TERMINAL_TERMS:
                 idx, sign = TERMINAL_TERMS[term.name]
                 grad_z[-1, idx] += self.pull[term.name] * sign / self.scale[idx]
+            elif term.name == "min_time":
+                grad_s += self.pull[term.name] * self.problem.scales.time_s / self.time_unit
             else:
                 if ft is None:
                     ft = self.problem.forces.terms(z[:, 0], z[:, 3])
@@ -103,6 +107,8 @@ class TimeObjective:
                 out[term.name] = float(z[-1, 3] * self.problem.scales.speed_m_s)
             elif term.name in TERMINAL_TERMS:
                 out[term.name] = math.degrees(float(z[-1, TERMINAL_TERMS[term.name][0]]))
+            elif term.name == "min_time":
+                out[term.name] = float(np.sum(s)) * self.problem.scales.time_s
             else:
                 forces = ft if ft is not None else self.problem.forces.terms(z[:, 0], z[:, 3])
                 out[term.name] = self._heat_load(z, s, forces)
@@ -119,5 +125,5 @@ class TimeObjective:
                 nd = v / sc.speed_m_s if idx == 3 else math.radians(v)
                 total += self.pull[term.name] * sign * nd / self.scale[idx]
             else:
-                total += self.pull[term.name] * v / self.heat_unit
+                total += self.pull[term.name] * v / self._unit(term.name)
         return total

@@ -24,14 +24,7 @@ OBJECTIVES = (
 def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     """Features the time-domain FOH method cannot express, and grid consistency."""
     out: list[FieldIssue] = []
-    if doc.final_time.kind != "fixed":
-        out.append(
-            issue(
-                "final_time",
-                f"{NAME} needs a fixed final time (its grid is time with interval lengths "
-                'summing to it); give final_time {"kind": "fixed", "value_s": ...}',
-            )
-        )
+    out.extend(_final_time_issues(doc))
     out.extend(scheduled_alpha_issues(doc, NAME))
     if doc.waypoints:
         out.append(issue("waypoints", f"{NAME} does not handle waypoints yet"))
@@ -44,6 +37,33 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     options = doc.method
     if isinstance(options, FohPtrOptions):
         out.extend(_grid_issues(doc, options))
+    return out
+
+
+def _final_time_issues(doc: ProblemDocument) -> list[FieldIssue]:
+    """A free final time needs the adaptive grid (its interval lengths carry the flight time)
+    and a terminal altitude or speed to end the flight."""
+    options = doc.method
+    if doc.final_time.kind == "fixed":
+        return []
+    out = []
+    if isinstance(options, FohPtrOptions) and options.grid != "adaptive":
+        out.append(
+            issue(
+                "method.grid",
+                f"{NAME} flies a free final time on the adaptive grid (its interval lengths "
+                'sum to the flight time); use grid "adaptive" or a fixed final time',
+            )
+        )
+    ends = (doc.terminal.altitude_m, doc.terminal.velocity_m_s)
+    if all(spec.target() is None for spec in ends):
+        out.append(
+            issue(
+                "final_time",
+                f"{NAME}: a free final time needs a terminal altitude or speed to end the "
+                "flight; give terminal.altitude_m",
+            )
+        )
     return out
 
 
