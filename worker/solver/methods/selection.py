@@ -64,9 +64,9 @@ PREFERENCE: tuple[Preference, ...] = (
 
 FREE_TIME_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 80, "max_iterations": 100}}
 """Auto's options of a method on a free final time, before the caller's ``nodes`` and
-overrides: foh-ptr's 40 nodes and 30 iterations per start are paper 002's, on its fixed-time
-flights; a free-time minimum heat load skips, and its bank pulses need finer intervals and more
-iterations (docs/methods/foh-ptr.md, "Free final time", measured)."""
+overrides: foh-ptr's 40 nodes are paper 002's, on its fixed-time flights; a free-time minimum
+heat load skips, and its bank pulses need finer intervals and up to 100 iterations a start (its
+default; paper 002's 30 did not converge) (docs/methods/foh-ptr.md, "Free final time")."""
 
 
 @dataclass(frozen=True)
