@@ -2,7 +2,8 @@
 
 A block is a fenced block (three backticks), a block indented by four spaces after a blank line,
 or (README only) an inline code span that is a command or a request: it starts with ``trajopt ``,
-``GET /``, ``{"`` or is a quoted message (``infeasible ``, ``raise ``). A test names its block by
+``GET /``, ``{"``, is a member of a request (``"name": {`` or ``"name": [``) or a quoted message
+(``infeasible ``, ``raise ``). A test names its block by
 the document and the start of its text (an inline span by its whole text), and runs the
 document's text.
 """
@@ -19,6 +20,8 @@ DOCUMENTS = ("README.md", "docs/problem-contract.md", "docs/service.md")
 INLINE_DOCUMENTS = ("README.md",)
 """The documents whose inline commands are blocks too."""
 INLINE_STARTS = ("trajopt ", "GET /", '{"', "infeasible ", "raise ")
+_MEMBER = re.compile(r'"\w+": [\[{]')
+"""A member of a JSON request quoted alone (``"name": {...}``)."""
 _SPAN = re.compile(r"(?<!`)`([^`]+)`(?!`)")
 
 
@@ -57,7 +60,7 @@ def _inline(document: str, text: str) -> list[Block]:
     found = []
     for match in _SPAN.finditer(text):
         span = " ".join(match.group(1).split())
-        if span.startswith(INLINE_STARTS):
+        if span.startswith(INLINE_STARTS) or _MEMBER.match(span):
             line = text.count("\n", 0, match.start()) + 1
             found.append(Block(document, line, "inline", span))
     return found

@@ -198,6 +198,9 @@ INFEASIBLE = (
 )
 ADVICE = "raise path_constraints.heat_rate.max_W_m2 above 1.108e+06 ..."
 PLOT = "GET /v1/jobs/<id>/plots/<name>.png"
+MONTE_CARLO = '"monte_carlo": {"samples": 50, "seed": 7, "dispersions": [...]}'
+METHODS = '"methods": [{"name": "foh-ptr"}, ...]'
+FROM_JOB = '"initial_guess": {"from_job": "<id>"}'
 STACK = "export DATABASE_URL="
 KEYS = "export TRAJOPT_AUTH_MODE=api-keys"
 MIN_HEAT_LOAD = '{"name": "rlv-min-heat-load",'
@@ -219,6 +222,9 @@ CASES = {
     (README, PROBLEM): "test_submit_and_problem_from_a_shell",
     (README, BATCH): "test_batch",
     (README, TOUR): "test_api_tour",
+    (README, MONTE_CARLO): "test_other_batches",
+    (README, METHODS): "test_other_batches",
+    (README, FROM_JOB): "test_start_from_an_earlier_job",
     (README, OVERRIDES): "test_overrides",
     (README, INFEASIBLE): "test_infeasible_before_any_iteration",
     (README, ADVICE): "test_infeasible_before_any_iteration",
@@ -444,6 +450,52 @@ def test_batch(server: ApiServer, client: ServiceClient, tmp_path: Path) -> None
     assert "also /plot.png" in text
     plot = client.http.get(f"/v1/batches/{batch['id']}/plot.png", timeout=120)
     assert plot.status_code == 200 and plot.content.startswith(b"\x89PNG")
+
+
+def member(key: str, **fill: Any) -> dict[str, Any]:
+    """README's request member ``key`` as JSON, each ``...`` of it replaced: a list's
+    ``[...]`` by ``fill["list"]``, a trailing ``, ...`` dropped."""
+    text = block(README, key).text.replace(", ...]", "]")
+    if "list" in fill:
+        text = text.replace("[...]", json.dumps(fill["list"]))
+    parsed: dict[str, Any] = json.loads("{" + text + "}")
+    return parsed
+
+
+def test_other_batches(client: ServiceClient) -> None:
+    """README's Monte Carlo dispersion (with one dispersion for its ``[...]``) and method
+    comparison are accepted as batches of 50 and of one child (then cancelled: their solves
+    are the batch tests' matter, not the README's)."""
+    dispersion = {"path": "/initial_state/velocity_m_s", "distribution": "normal", "sigma": 5}
+    base = {"scenario": "rlv-max-terminal-velocity"}
+    for body, kind, size in (
+        ({"base": base, **member(MONTE_CARLO, list=[dispersion])}, "monte_carlo", 50),
+        ({"base": base, **member(METHODS)}, "methods", 1),
+    ):
+        response = client.http.post("/v1/batches", json=body)
+        assert response.status_code == 202, response.text
+        batch = response.json()
+        assert (batch["kind"], batch["size"]) == (kind, size)
+        assert client.http.delete(f"/v1/batches/{batch['id']}").status_code in (200, 202)
+        assert wait_batch(client, batch["id"], timeout=120)["status"] == "cancelled"
+
+
+def test_start_from_an_earlier_job(client: ServiceClient) -> None:
+    """A neighbouring problem (a lower heat-rate limit) started from an earlier answer, README's
+    member in the scenario's merge patch, takes a few iterations instead of tens."""
+    first = client.submit({"scenario": "rlv-max-terminal-velocity"})
+    assert client.wait_finished(first["id"])["status"] == "succeeded"
+    start = json.loads(json.dumps(member(FROM_JOB)).replace("<id>", first["id"]))
+    heat = {"path_constraints": {"heat_rate": {"max_W_m2": 1.45e6}}}
+    warm = client.submit({"scenario": "rlv-max-terminal-velocity", "overrides": heat | start})
+    assert client.wait_finished(warm["id"])["status"] == "succeeded"
+    cold = client.submit({"scenario": "rlv-max-terminal-velocity", "overrides": heat})
+    assert client.wait_finished(cold["id"])["status"] == "succeeded"
+    counts = [
+        len(client.http.get(f"/v1/jobs/{job['id']}/history").json()["iterations"])
+        for job in (warm, cold)
+    ]
+    assert counts[0] <= 9 and counts[1] >= 10, counts  # "a few" and "tens"
 
 
 def request_of(command: str, base_url: str) -> str:
