@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -129,6 +130,7 @@ def sh(command: str, cwd: Path, env: dict[str, str] | None = None, timeout: floa
 def curl(command: str, cwd: Path, env: dict[str, str] | None = None) -> Http:
     """Run a documented ``curl`` command, its response headers written aside."""
     assert command.startswith("curl "), command
+    assert shutil.which("curl"), "the documents' HTTP examples need curl on PATH"
     headers_file = cwd / f"headers-{uuid.uuid4().hex}.txt"
     run = sh(f"curl -D {headers_file} {command[5:]}", cwd, env)
     assert run.code == 0, (command, run.err)
@@ -358,7 +360,9 @@ def test_look_at_a_result(tmp_path: Path) -> None:
     run = sh(plot, tmp_path)
     assert run.code == 0, run.err
     pngs = {p.stem for p in (tmp_path / "plots").glob("*.png")}
-    assert {"heat-rate", "ground-track"} <= pngs, pngs
+    shown = set(re.findall(r"\]\(docs/images/([\w-]+)\.png\)", readme_text()))
+    assert shown == {"heat-rate", "ground-track"} and shown <= pngs, (shown, pngs)
+    assert all((REPO_ROOT / "docs" / "images" / f"{name}.png").is_file() for name in shown)
     assert "--format svg for SVG" in text
     run = sh(f"{plot.split('#')[0].strip()} --format svg", tmp_path)
     assert run.code == 0, run.err
