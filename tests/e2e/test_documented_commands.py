@@ -793,7 +793,8 @@ def test_keys(tmp_path: Path) -> None:
     key = run.out.strip()
     assert len(run.out.splitlines()) == 1 and key, run.out
     api = ApiServer(env, tmp_path / "api.log")
-    for _ in api.serving():
+    api.start_and_wait()
+    try:
         env["KEY"] = key
         request = localize(request, api.base_url)
         answer = curl(request, tmp_path, env)
@@ -806,3 +807,5 @@ def test_keys(tmp_path: Path) -> None:
         assert run.code == 0, run.err
         refused = curl(request, tmp_path, env)
         assert refused.status == 401, refused.body
+    finally:
+        api.stop()
