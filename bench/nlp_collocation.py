@@ -1,21 +1,21 @@
 """A general NLP transcription of an entry problem: the independent reference of the benchmarks.
 
-Hermite–Simpson collocation in separated form (states and controls at the nodes and at the
-interval midpoints; Betts, Practical Methods for Optimal Control, 2nd ed., sec. 4.6.4) on a
-uniform time mesh, solved by IPOPT through CasADi. The problem is read from the same problem
-document the service takes (SI values): the point-mass equations over a spherical, optionally
-rotating planet (paper 000 eq. 1) or paper 001's flat-Earth model (eq. 1); the exponential or
-U.S. 1976 atmosphere, polynomial aerodynamics (CD in alpha or in CL) or a parabolic polar, the
-angle-of-attack laws of the contract (velocity schedule, table, constant, optimized: a control,
-or a state with its rate the control when its rate is limited, paper 003 eq. 1) and the force
-models of ``bench.nlp_models``; heat-rate (with its alpha factor), dynamic-pressure and
-load-factor limits; fixed, range or soft terminal conditions (soft ones held hard, which has the
-same optimum as their exact penalty); a fixed or free (optionally bounded) final time; bank
-limits, symmetric or not (the bank a state and its rate the control when a rate limit is given);
-given initial bank and alpha; great-circle or lat/lon no-fly zones; and any weighted sum of the
-objectives maximum terminal velocity, minimum heat load, minimum time and extreme final latitude
-or longitude. Not covered: aerodynamic tables, waypoints, phases, propulsion, minimum control
-effort (each refused by name).
+Hermite–Simpson collocation in separated form (states at the nodes and at the interval
+midpoints; Betts, Practical Methods for Optimal Control, 2nd ed., sec. 4.6.4), the controls at
+the nodes and linear over each interval, on a uniform time mesh, solved by IPOPT through CasADi.
+The problem is read from the same problem document the service takes (SI values): the point-mass
+equations over a spherical, optionally rotating planet (paper 000 eq. 1) or paper 001's flat-
+Earth model (eq. 1); the exponential or U.S. 1976 atmosphere, polynomial aerodynamics (CD in
+alpha or in CL) or a parabolic polar, the angle-of-attack laws of the contract (velocity
+schedule, table, constant, optimized: a control, or a state with its rate the control when its
+rate is limited, paper 003 eq. 1) and the force models of ``bench.nlp_models``; heat-rate (with
+its alpha factor), dynamic-pressure and load-factor limits; fixed, range or soft terminal
+conditions (soft ones held hard, which has the same optimum as their exact penalty); a fixed or
+free (optionally bounded) final time; bank limits, symmetric or not (the bank a state and its
+rate the control when a rate limit is given); given initial bank and alpha; great-circle or
+lat/lon no-fly zones; and any weighted sum of the objectives maximum terminal velocity, minimum
+heat load, minimum time and extreme final latitude or longitude. Not covered: aerodynamic
+tables, waypoints, phases, propulsion, minimum control effort (each refused by name).
 
 CasADi is an optional benchmark dependency (``pip install -e '.[bench]'``); nothing in the
 service imports this module.
@@ -283,7 +283,10 @@ class EntryNlp:
         X = opti.variable(self.nx, n + 1)  # nodes
         Xm = opti.variable(self.nx, n)  # midpoints
         U = opti.variable(self.nu, n + 1)
-        Um = opti.variable(self.nu, n)
+        # the control linear over each interval: its midpoint value the mean of the nodes'. With a
+        # free midpoint control, an objective that leaves the interior free (e.g. one pinned by a
+        # terminal limit) lets nodes and midpoints alternate, which no flown control reproduces
+        Um = 0.5 * (U[:, :n] + U[:, 1:])
         final = doc.get("final_time") or {}
         fixed_tf = final.get("kind") == "fixed"
         t0 = float(doc["initial_state"].get("time_s", 0.0))
@@ -368,17 +371,22 @@ class EntryNlp:
                 opti.subject_to((lat - lat_c) ** 2 + (lon - lon_c) ** 2 >= radius**2)
 
     def _bounds(self, opti: Any, X: Any, Xm: Any, U: Any, Um: Any) -> None:
-        """Control, attitude and state bounds at the nodes and the midpoints."""
-        for cols, u in ((X, U), (Xm, Um)):
-            bank = cols[6, :] if self.bank_state else u[0, :]
-            opti.subject_to(opti.bounded(self.bank_min, bank, self.bank_max))
+        """Control, attitude and state bounds at the nodes and the midpoints (a midpoint control
+        is the mean of two bounded node controls, so only the nodes' controls are bounded)."""
+        bank_rate = self.bank_rate_max or 0.0
+        att_rate = self.att_rate_max or 0.0
+        for cols, u, nodes in ((X, U, True), (Xm, Um, False)):
             if self.bank_state:
-                opti.subject_to(opti.bounded(-self.bank_rate_max, u[0, :], self.bank_rate_max))
-            if self.has_att:
+                opti.subject_to(opti.bounded(self.bank_min, cols[6, :], self.bank_max))
+                if nodes:
+                    opti.subject_to(opti.bounded(-bank_rate, u[0, :], bank_rate))
+            elif nodes:
+                opti.subject_to(opti.bounded(self.bank_min, u[0, :], self.bank_max))
+            if self.has_att and (self.att_state or nodes):
                 att = cols[self.i_att_x, :] if self.att_state else u[1, :]
                 opti.subject_to(opti.bounded(self.att_range[0], att, self.att_range[1]))
-                if self.att_state:
-                    opti.subject_to(opti.bounded(-self.att_rate_max, u[1, :], self.att_rate_max))
+            if self.att_state and nodes:
+                opti.subject_to(opti.bounded(-att_rate, u[1, :], att_rate))
             opti.subject_to(cols[0, :] >= 1.0)
             opti.subject_to(cols[3, :] >= 0.01)
 
@@ -557,7 +565,7 @@ class EntryNlp:
         opti.set_initial(self.X, nodes)
         opti.set_initial(self.Xm, mids)
         opti.set_initial(self.U, u)
-        opti.set_initial(self.Um, um)
+        del um  # the midpoint controls follow from the nodes'
         if not self.fixed_tf:
             opti.set_initial(self.tf, span)
 
