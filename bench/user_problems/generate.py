@@ -30,6 +30,9 @@ SEED = 36
 INFEASIBLE_EVERY = 6
 """Every this many problems (index % INFEASIBLE_EVERY == 5) one is infeasible on purpose."""
 EARTH_RADIUS_M = 6378000.0
+REACH_FRACTION = 0.85
+"""Targets lie within this fraction of the lift-up flight's ground range (the vehicle's reach
+to first order), so that most problems are feasible; those made infeasible say why."""
 FREE_TIME_MAX_S = 3000.0
 """Latest final time of a free final time: a bound the contract states, so that the reference
 and the methods solve the same problem (a glide near orbital speed could otherwise go on)."""
@@ -156,9 +159,28 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
     if infeasible == "downrange_beyond_speed" and objective in ("min_time", "max_final_extent"):
         objective = "max_terminal_velocity"  # needs a fixed final time
     vehicle, heat = _vehicle(kind, rng)
+    atmosphere: dict[str, Any] = (
+        {"model": "us76"}
+        if rng.uniform() < 0.35
+        else {"model": "exponential", "density_sea_level_kg_m3": 1.225, "scale_height_m": 7200}
+    )
+    h_end = round(float(rng.uniform(25e3, 32e3)), -2)
+    planet = {"radius_m": EARTH_RADIUS_M, "g0_m_s2": 9.81, "atmosphere": atmosphere}
     for _ in range(100):  # an entry and target whose path stays off the poles
         entry = _entry(kind, rng)
-        downrange = float(rng.uniform(2000, 10000))
+        peaks = lift_up_peaks(
+            {
+                "vehicle": vehicle,
+                "planet": planet,
+                "initial_state": entry,
+                "terminal": {"altitude_m": h_end},
+                "path_constraints": {"heat_rate": heat},
+            }
+        )
+        reach = REACH_FRACTION * peaks["range_at_end_km"]
+        if reach < 2500.0:  # skips out or falls short: another entry
+            continue
+        downrange = float(rng.uniform(2000, min(10000, reach)))
         t_lat, t_lon, cross = _target(entry, rng, downrange)
         lat0, lon0 = math.radians(entry["latitude_deg"]), math.radians(entry["longitude_deg"])
         bearing = bearing_to(lat0, lon0, math.radians(t_lat), math.radians(t_lon))
@@ -169,11 +191,6 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
             and abs(math.radians(entry["longitude_deg"]) - math.radians(t_lon)) < math.pi
         ):
             break
-    atmosphere: dict[str, Any] = (
-        {"model": "us76"}
-        if rng.uniform() < 0.35
-        else {"model": "exponential", "density_sea_level_kg_m3": 1.225, "scale_height_m": 7200}
-    )
     rotation = bool(rng.uniform() < 0.5)
     features = [f"{index:03d}", kind, objective, atmosphere["model"]]
     doc: dict[str, Any] = {
@@ -191,21 +208,22 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
     if kind == "rlv" and rng.uniform() < 0.4:
         doc["control_limits"]["bank_rate_max_deg_s"] = 10.0
         features.append("bank-rate")
-    h_end = round(float(rng.uniform(25e3, 32e3)), -2)
     terminal: dict[str, Any] = {"altitude_m": h_end}
+    # a fixed final time near the lift-up flight's, shorter for a shorter downrange
+    natural_tf = round(peaks["time_at_end_s"] * math.sqrt(downrange / peaks["range_at_end_km"]), -1)
     target = {"latitude_deg": round(t_lat, 3), "longitude_deg": round(t_lon, 3)}
     fixed_tf: float | None = None
     if objective == "max_terminal_velocity":
         terminal |= target
         terminal["flight_path_angle_deg"] = {"kind": "range", "lo": -15.0, "hi": 0.0}
         if rng.uniform() < 0.5 or infeasible == "downrange_beyond_speed":
-            fixed_tf = round(downrange * 1e3 / (0.45 * entry["velocity_m_s"]) + 300.0, -1)
+            fixed_tf = natural_tf
     elif objective == "min_heat_load":
         terminal |= target
         terminal["velocity_m_s"] = round(float(rng.uniform(700, 1100)), -1)
         terminal["flight_path_angle_deg"] = {"kind": "range", "lo": -15.0, "hi": 0.0}
         if rng.uniform() < 0.3:
-            fixed_tf = round(downrange * 1e3 / (0.45 * entry["velocity_m_s"]) + 300.0, -1)
+            fixed_tf = natural_tf
     elif objective == "min_time":
         terminal |= target
         terminal["velocity_m_s"] = {"kind": "range", "lo": 700.0, "hi": 1500.0}
@@ -229,7 +247,6 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
         else {"kind": "free", "max_s": FREE_TIME_MAX_S}
     )
     features.append("fixed-tf" if fixed_tf is not None else "free-tf")
-    peaks = lift_up_peaks({**doc, "path_constraints": {"heat_rate": heat}})
     tight = rng.uniform() < 0.5
     v_end = terminal.get("velocity_m_s")
     q_end, n_end = state_loads(doc, h_end, float(v_end)) if isinstance(v_end, float) else (0.0, 0.0)

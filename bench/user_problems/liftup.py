@@ -6,7 +6,7 @@ the flight that keeps the vehicle highest for its speed, so the least stagnation
 entry can have to first order (paper 000 sec. 2's quasi-equilibrium argument). The generator sets
 limits relative to these peaks; a heat limit well below the lift-up peak is a cheap physical
 sign of infeasibility, recorded as such (not a proof). Non-rotating point mass (paper 000
-eq. 1 with omega = 0), RK4 at 1 s, plain Python (a generator's step, not a reference).
+eq. 1 with omega = 0), RK4 at 2 s, plain Python (a generator's step, not a reference).
 """
 
 from __future__ import annotations
@@ -86,7 +86,8 @@ def _coefficients(vehicle: dict[str, Any]) -> Any:
 
 def lift_up_peaks(document: dict[str, Any]) -> dict[str, float]:
     """Peaks of heat rate (W/m^2), dynamic pressure (Pa) and load factor (g) of the lift-up
-    flight, and the speed (m/s) it reaches the terminal altitude with (0 if it skips out)."""
+    flight, and the speed (m/s; 0 if it skips out), time (s) and ground range (km) at which it
+    reaches the terminal altitude."""
     planet, vehicle = document["planet"], document["vehicle"]
     radius = float(planet.get("radius_m", 6378140.0))
     g0 = float(planet.get("g0_m_s2", 9.81))
@@ -121,10 +122,19 @@ def lift_up_peaks(document: dict[str, Any]) -> dict[str, float]:
         float(init["velocity_m_s"]),
         math.radians(float(init["flight_path_angle_deg"])),
     )
-    peaks = {"heat_rate": 0.0, "dynamic_pressure": 0.0, "load_factor": 0.0, "speed_at_end": 0.0}
-    dt = 1.0
-    for _ in range(20000):
-        h, v, _g = s
+    peaks = {
+        "heat_rate": 0.0,
+        "dynamic_pressure": 0.0,
+        "load_factor": 0.0,
+        "speed_at_end": 0.0,
+        "time_at_end_s": 0.0,
+        "range_at_end_km": 0.0,
+    }
+    dt = 2.0
+    for step in range(10000):
+        h, v, gam = s
+        peaks["time_at_end_s"] = step * dt
+        peaks["range_at_end_km"] += v * math.cos(gam) * radius / (radius + h) * dt / 1e3
         rho = rho_of(h)
         cl, cd = coeffs(v)
         qa = _horner(poly, alpha_of(v)) if poly and alpha_of else 1.0
