@@ -33,6 +33,9 @@ EARTH_RADIUS_M = 6378000.0
 REACH_FRACTION = 0.85
 """Targets lie within this fraction of the lift-up flight's ground range (the vehicle's reach
 to first order), so that most problems are feasible; those made infeasible say why."""
+SHORTEST_FACTOR = 1.1
+"""Targets lie beyond this times the track of the flight banked at the bank limit all along
+(the least a vehicle without lift down can fly, to first order)."""
 FREE_TIME_MAX_S = 3000.0
 """Latest final time of a free final time: a bound the contract states, so that the reference
 and the methods solve the same problem (a glide near orbital speed could otherwise go on)."""
@@ -166,6 +169,7 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
     )
     h_end = round(float(rng.uniform(25e3, 32e3)), -2)
     planet = {"radius_m": EARTH_RADIUS_M, "g0_m_s2": 9.81, "atmosphere": atmosphere}
+    bank_max = float(rng.choice([60.0, 70.0, 80.0]))
     for _ in range(100):  # an entry and target whose path stays off the poles
         entry = _entry(kind, rng)
         peaks = lift_up_peaks(
@@ -177,11 +181,40 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
                 "path_constraints": {"heat_rate": heat},
             }
         )
-        reach = REACH_FRACTION * peaks["range_at_end_km"]
-        if reach < 2500.0:  # skips out or falls short: another entry
+        banked = lift_up_peaks(
+            {
+                "vehicle": vehicle,
+                "planet": planet,
+                "initial_state": entry,
+                "terminal": {"altitude_m": h_end},
+            },
+            bank_deg=bank_max,
+        )
+        reach = min(10000.0, REACH_FRACTION * peaks["range_at_end_km"])
+        shortest = max(2000.0, SHORTEST_FACTOR * banked["range_at_end_km"])
+        if reach < shortest + 300.0:  # no window between the two flights: another entry
             continue
-        downrange = float(rng.uniform(2000, min(10000, reach)))
+        downrange = float(rng.uniform(shortest, reach))
         t_lat, t_lon, cross = _target(entry, rng, downrange)
+        lat0, lon0 = math.radians(entry["latitude_deg"]), math.radians(entry["longitude_deg"])
+        distance = (
+            math.degrees(
+                math.acos(
+                    min(
+                        1.0,
+                        math.sin(lat0) * math.sin(math.radians(t_lat))
+                        + math.cos(lat0)
+                        * math.cos(math.radians(t_lat))
+                        * math.cos(math.radians(t_lon) - lon0),
+                    )
+                )
+            )
+            * (math.pi / 180.0)
+            * EARTH_RADIUS_M
+            / 1e3
+        )
+        if not shortest <= distance <= reach:
+            continue
         lat0, lon0 = math.radians(entry["latitude_deg"]), math.radians(entry["longitude_deg"])
         bearing = bearing_to(lat0, lon0, math.radians(t_lat), math.radians(t_lon))
         arc = downrange * 1e3 / EARTH_RADIUS_M
@@ -203,7 +236,7 @@ def generate(index: int, seed: int = SEED) -> dict[str, Any]:
             "atmosphere": atmosphere,
         },
         "initial_state": entry,
-        "control_limits": {"bank_max_deg": float(rng.choice([60.0, 70.0, 80.0]))},
+        "control_limits": {"bank_max_deg": bank_max},
     }
     if kind == "rlv" and rng.uniform() < 0.4:
         doc["control_limits"]["bank_rate_max_deg_s"] = 10.0

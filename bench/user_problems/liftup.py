@@ -84,10 +84,11 @@ def _coefficients(vehicle: dict[str, Any]) -> Any:
     return of, alpha
 
 
-def lift_up_peaks(document: dict[str, Any]) -> dict[str, float]:
+def lift_up_peaks(document: dict[str, Any], bank_deg: float = 0.0) -> dict[str, float]:
     """Peaks of heat rate (W/m^2), dynamic pressure (Pa) and load factor (g) of the lift-up
     flight, and the speed (m/s; 0 if it skips out), time (s) and ground range (km) at which it
-    reaches the terminal altitude."""
+    reaches the terminal altitude. With ``bank_deg`` the lift is tilted that far (the vertical
+    plane only): at the bank limit, the shortest track a flight without lift down has."""
     planet, vehicle = document["planet"], document["vehicle"]
     radius = float(planet.get("radius_m", 6378140.0))
     g0 = float(planet.get("g0_m_s2", 9.81))
@@ -95,6 +96,7 @@ def lift_up_peaks(document: dict[str, Any]) -> dict[str, float]:
     made = _coefficients(vehicle)
     coeffs, alpha_of = made if isinstance(made, tuple) else (made, None)
     s_over_m = float(vehicle["reference_area_m2"]) / float(vehicle["mass_kg"])
+    vertical = math.cos(math.radians(bank_deg))
     heat = (document.get("path_constraints") or {}).get("heat_rate") or {}
     k_q = float(heat.get("k_q", 9.4369e-5))
     m_exp = float(heat.get("velocity_exponent", 3.15))
@@ -114,7 +116,7 @@ def lift_up_peaks(document: dict[str, Any]) -> dict[str, float]:
         return (
             v * math.sin(gam),
             -drag - g * math.sin(gam),
-            (lift - (g - v * v / r) * math.cos(gam)) / v,
+            (lift * vertical - (g - v * v / r) * math.cos(gam)) / v,
         )
 
     s = (
