@@ -4,10 +4,10 @@ several starts, its controls re-flown through the service's verification propaga
 For each problem and each start (``bench.nlp_collocation``: 0 the closest constant-bank flight,
 1 the closest of the other bank sign), IPOPT solves on ``MESHES`` (40 then 80 intervals, the
 finer warm-started from the coarser); when no start's two meshes agree to ``AGREEMENT`` (4
-significant digits), the best start goes on to ``FINE_MESHES`` until two successive ones do.
-The best agreeing start is the reference; its controls (bank and alpha or lambda, linear over
-each interval as the transcription holds them) are flown by
-``worker.solver.verification.verify`` and the report's feasibility recorded. A problem where IPOPT converges from no start is marked
+significant digits), the best start goes on to ``FINE_MESHES`` until two successive ones do. The
+best agreeing start is the reference; its controls (bank and alpha or lambda, linear over each
+interval as the transcription holds them) are flown by ``worker.solver.verification.verify`` and
+the report's feasibility recorded. A problem where IPOPT converges from no start is marked
 infeasible (``status: infeasible``), with the generator's physical argument when it made it so.
 
     python -m bench.user_problems.reference --count 90            # write data/ files
