@@ -43,6 +43,8 @@ loop, meet the verification: a long glide drifts from a coarse mesh's controls."
 AGREEMENT = 1e-4
 """Relative agreement of two meshes' objectives: 4 significant digits."""
 STARTS = (0, 1)
+INFEASIBLE = ("Infeasible_Problem_Detected",)
+"""IPOPT's return status that declares a start infeasible."""
 MAX_ITER = 1000
 
 
@@ -197,6 +199,12 @@ def refine(document: dict[str, Any], best: dict[str, Any], n: int) -> dict[str, 
     return {"mesh": mesh, "converged": solution.converged, "nlp": nlp, "arrays": solution.arrays}
 
 
+def infeasible_everywhere(starts: list[dict[str, Any]]) -> bool:
+    """IPOPT declared every start infeasible (an iteration limit or a failed restoration is no
+    verdict: such a problem stays unresolved)."""
+    return all(s["meshes"] and s["meshes"][-1]["status"] in INFEASIBLE for s in starts)
+
+
 def reference(entry: dict[str, Any]) -> dict[str, Any]:
     """The reference record of one generated problem."""
     import casadi
@@ -264,7 +272,7 @@ def reference(entry: dict[str, Any]) -> dict[str, Any]:
         record["reflight"].setdefault("intervals", final["intervals"])
         values = [_minimized(document, r["meshes"][-1]["objective"]) for r in finished]
         record["starts_spread_relative"] = (max(values) - min(values)) / max(abs(min(values)), 1e-9)
-    elif not converged_any:
+    elif not converged_any and infeasible_everywhere(record["starts"]):
         record["status"] = "infeasible"
         record["infeasibility_argument"] = entry["features"].get("infeasibility_argument")
     else:
