@@ -152,4 +152,6 @@ def test_a_final_time_cause_names_the_methods_that_take_a_free_final_time() -> N
     doc = ProblemDocument.model_validate(_user(final_time_s=1500.0))
     (finding,) = reach_findings(build_problem(doc))
     advice = with_methods(finding, doc).advice
-    assert advice.endswith('(final_time: {"kind": "free"}) with a method that takes it: cheb-scvx')
+    assert advice.endswith(
+        '(final_time: {"kind": "free"}) with a method that takes it: foh-ptr, cheb-scvx'
+    )
