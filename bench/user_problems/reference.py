@@ -146,17 +146,7 @@ def solve_start(document: dict[str, Any], start: int) -> dict[str, Any]:
         if arrays is not None:
             nlp.warm_from(arrays)
         solution = nlp.solve()
-        meshes.append(
-            {
-                "intervals": n,
-                "status": solution.status,
-                "objective": solution.objective,
-                "terms": solution.terms,
-                "final_time_s": solution.final_time_s,
-                "iterations": solution.iterations,
-                "cpu_s": round(time.process_time() - cpu, 3),
-            }
-        )
+        meshes.append(_mesh_record(n, solution, cpu))
         if not solution.converged:
             break
         arrays = solution.arrays
@@ -166,6 +156,19 @@ def solve_start(document: dict[str, Any], start: int) -> dict[str, Any]:
                 agreed = True
                 break
     return {"start": start, "meshes": meshes, "agreed": agreed, "_arrays": arrays, "_nlp": nlp}
+
+
+def _mesh_record(n: int, solution: Any, cpu_start: float) -> dict[str, Any]:
+    """What a reference keeps of one mesh's IPOPT solve (``cpu_start``: process time before)."""
+    return {
+        "intervals": n,
+        "status": solution.status,
+        "objective": solution.objective,
+        "terms": solution.terms,
+        "final_time_s": solution.final_time_s,
+        "iterations": solution.iterations,
+        "cpu_s": round(time.process_time() - cpu_start, 3),
+    }
 
 
 def ipopt_version() -> str:
@@ -184,15 +187,7 @@ def refine(document: dict[str, Any], best: dict[str, Any], n: int) -> dict[str, 
     nlp = EntryNlp(document, n, max_iter=MAX_ITER, start=best["start"])
     nlp.warm_from(best["_arrays"])
     solution = nlp.solve()
-    mesh = {
-        "intervals": n,
-        "status": solution.status,
-        "objective": solution.objective,
-        "terms": solution.terms,
-        "final_time_s": solution.final_time_s,
-        "iterations": solution.iterations,
-        "cpu_s": round(time.process_time() - cpu, 3),
-    }
+    mesh = _mesh_record(n, solution, cpu)
     if solution.converged:
         best["_arrays"] = solution.arrays
         best["_nlp"] = nlp

@@ -35,6 +35,7 @@ from tests.integration.harness import (
     ApiServer,
     ServiceClient,
     ServiceProcess,
+    admin_postgres_url,
     embedded_env,
     forget_queue,
     free_port,
@@ -670,25 +671,7 @@ def exports(text: str) -> dict[str, str]:
 
 def postgres_url() -> str:
     """A PostgreSQL URL of the loopback server that can create schemas."""
-    given = os.environ.get("TEST_POSTGRES_URL")
-    candidates = (
-        [given]
-        if given
-        else [
-            "postgresql://postgres@127.0.0.1:5432/test",
-            "postgresql://root@127.0.0.1:5432/test",
-        ]
-    )
-    errors = []
-    for url in candidates:
-        try:
-            with psycopg.connect(url, connect_timeout=3) as conn:
-                conn.execute("SELECT 1")
-            return url
-        except psycopg.Error as exc:
-            errors.append(f"{url}: {exc}".strip())
-    require("PostgreSQL", "; ".join(errors))
-    raise AssertionError("unreachable")
+    return admin_postgres_url()
 
 
 class ShellProcess(ServiceProcess):

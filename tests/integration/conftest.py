@@ -22,6 +22,7 @@ from tests.integration.harness import (
     ApiServer,
     ServiceClient,
     ServiceProcess,
+    admin_postgres_url,
     create_api_key,
     forget_queue,
     require,
@@ -32,29 +33,10 @@ TEST_SECRET = "it-only-5b1f0c7e9a2d4e6f8a0b2c4d6e8f0a1b"
 """Server secret of the test deployments (api-keys mode refuses a missing or default one)."""
 
 
-def _admin_urls() -> list[str]:
-    given = os.environ.get("TEST_POSTGRES_URL")
-    if given:
-        return [given]
-    return [
-        "postgresql://postgres@127.0.0.1:5432/test",
-        "postgresql://root@127.0.0.1:5432/test",
-    ]
-
-
 @pytest.fixture(scope="session")
 def pg_admin_url() -> str:
     """A PostgreSQL URL that can create schemas (trust auth on the loopback)."""
-    errors = []
-    for url in _admin_urls():
-        try:
-            with psycopg.connect(url, connect_timeout=3) as conn:
-                conn.execute("SELECT 1")
-            return url
-        except psycopg.Error as exc:
-            errors.append(f"{url}: {exc}".strip())
-    require("PostgreSQL", "; ".join(errors))
-    raise AssertionError("unreachable")
+    return admin_postgres_url()
 
 
 def with_schema(url: str, schema: str) -> str:

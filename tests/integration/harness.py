@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import httpx
+import psycopg
 import pytest
 import redis
 
@@ -143,6 +144,31 @@ def require(service: str, reason: str | None) -> None:
     pytest.fail(
         f"{message} (bash .ci/run starts it; {SKIP_MISSING_SERVICES}=1 skips)", pytrace=False
     )
+
+
+def admin_postgres_url() -> str:
+    """A URL of the loopback PostgreSQL that can create schemas (trust auth): the first of
+    ``TEST_POSTGRES_URL`` or the users ``postgres`` and ``root`` that answers; the test fails
+    naming each refusal when none does."""
+    given = os.environ.get("TEST_POSTGRES_URL")
+    candidates = (
+        [given]
+        if given
+        else [
+            "postgresql://postgres@127.0.0.1:5432/test",
+            "postgresql://root@127.0.0.1:5432/test",
+        ]
+    )
+    errors = []
+    for url in candidates:
+        try:
+            with psycopg.connect(url, connect_timeout=3) as conn:
+                conn.execute("SELECT 1")
+            return url
+        except psycopg.Error as exc:
+            errors.append(f"{url}: {exc}".strip())
+    require("PostgreSQL", "; ".join(errors))
+    raise AssertionError("unreachable")
 
 
 def forget_queue(redis_url: str, queue: str) -> None:
