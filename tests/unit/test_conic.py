@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
 
+import clarabel
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -23,6 +26,7 @@ from worker.solver.conic import (
     map_cvxpy_status,
     same_pattern,
 )
+from worker.solver.conic.clarabel_direct import clarabel_cones
 
 # Both backends run interior-point methods to a relative/absolute duality gap of about 1e-8
 # (Clarabel's and ECOS's defaults), so two optimal costs agree far inside 1e-6 relative.
@@ -448,3 +452,51 @@ def test_fresh_solver_in_trouble_is_not_retried() -> None:
     solution = backend.solve(_random_socp(np.random.default_rng(6)))
     assert solution.status is ConicStatus.NUMERICAL_ERROR
     assert (backend.setups, backend.updates) == (1, 0)
+
+
+STALLED = Path(__file__).with_name("data") / "foh_free_time_stalled_subproblem.npz"
+"""A foh-ptr subproblem of a free final time (user-problem suite 009, iteration 4 with
+weight_trust_final_time 10) on which a fresh Clarabel at its defaults stalls: soft-terminal
+weights of 3e6 beside unit ones."""
+
+
+def _stalled() -> ConeProblem:
+    d = np.load(STALLED)
+    P = sp.csc_matrix((d["P_data"], d["P_indices"], d["P_indptr"]), shape=tuple(d["shape_P"]))
+    A = sp.csc_matrix((d["A_data"], d["A_indices"], d["A_indptr"]), shape=tuple(d["shape_A"]))
+    cones = ConeSpec(int(d["n_zero"]), int(d["n_nonneg"]), tuple(int(k) for k in d["soc_dims"]))
+    return ConeProblem(P=P, q=d["q"], A=A, b=d["b"], cones=cones)
+
+
+def test_a_fresh_solver_that_stalls_gets_the_robust_settings_once() -> None:
+    problem = _stalled()
+    plain = clarabel.DefaultSolver(
+        problem.P,
+        problem.q,
+        problem.A,
+        problem.b,
+        clarabel_cones(problem.cones),
+        _quiet_settings(),
+    ).solve()
+    assert str(plain.status) == "NumericalError"  # the premise, with the pinned Clarabel
+    backend = ClarabelBackend()
+    answer = backend.solve(problem)
+    assert answer.status is ConicStatus.OPTIMAL and backend.setups == 2
+    assert answer.iterations > plain.iterations  # the stalled attempt's iterations are counted
+    # Another cure for the same stall (no equilibration) must give the same optimum: both are
+    # interior-point solutions at gap 1e-8, the objective near -2.25, so 1e-5 relative.
+    settings = _quiet_settings()
+    settings.equilibrate_enable = False
+    other = clarabel.DefaultSolver(
+        problem.P, problem.q, problem.A, problem.b, clarabel_cones(problem.cones), settings
+    ).solve()
+    assert str(other.status) == "Solved"
+    assert answer.objective == pytest.approx(other.obj_val, rel=1e-5)
+    after = backend.solve(_random_socp(np.random.default_rng(6)))  # defaults again
+    assert after.status is ConicStatus.OPTIMAL and backend._robust is False
+
+
+def _quiet_settings() -> Any:
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    return settings

@@ -190,6 +190,14 @@ class FohPtrOptions(ScpRunOptions):
         "trajectory, which otherwise creeps and stops short: paper 002 case 1 at 40 nodes "
         "970.15 m/s with 100, 968.53 with 10; see docs/methods/foh-ptr.md).",
     )
+    weight_trust_final_time: float = Field(
+        1.0,
+        ge=0,
+        description="With a free final time, the weight of N m^2 on the intervals' mean scaled "
+        "change m (the final time's), in place of weight_trust_interval, which then damps only "
+        "the sliding of the nodes about that mean: at 100 the final time moved about 1 s an "
+        "iteration and a glide that needed 600 s more stopped at the iteration limit.",
+    )
     weight_nonlinear: float = Field(
         0.0,
         ge=0,

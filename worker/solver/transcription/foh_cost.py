@@ -45,6 +45,12 @@ class FohCost:
         self.n_quad = sub.col_s.size + sub.K * (sub.nz + 1)  # the diagonal covers z, w and s
         diag = np.arange(self.n_quad)
         p_rows, p_cols = [diag], [diag]
+        self.n_span = 0
+        if sub.free_final_time:  # the rank-one final-time term on every pair of intervals
+            s_upper = np.triu_indices(sub.N)
+            p_rows.append(sub.col_s[s_upper[0]])
+            p_cols.append(sub.col_s[s_upper[1]])
+            self.n_span = s_upper[0].size
         if sub.hessian_blocks:  # one upper triangle per interval block
             curved_cols = sub.block_cols[:, keep]
             a = curved_cols[:, upper[0]].ravel()
@@ -57,21 +63,25 @@ class FohCost:
 
     def diagonal(self, d: SubproblemData) -> Array:
         """P's triplet values with the curvature blocks left zero: 2 w_tr (plus the separable
-        penalties' 2 Q Dz^2 on z), and 2 w_tr2 on the interval lengths."""
+        penalties' 2 Q Dz^2 on z), and 2 w_tr2 on the interval lengths; with a free final time
+        the intervals' mean change m is weighted by w_trT instead: w_tr2 |ds - m|^2 + w_trT N m^2
+        = w_tr2 |ds|^2 + (w_trT - w_tr2) (sum ds)^2 / N, a rank-one term on every pair."""
         sub = self.sub
         K, nz = sub.K, sub.nz
         n_blocks = sub.N * self.n_upper if sub.hessian_blocks else 0
-        p = np.zeros(self.n_quad + n_blocks)
+        p = np.zeros(self.n_quad + self.n_span + n_blocks)
         pz = p[: K * nz].reshape(K, nz)
         pz[:] = 2.0 * sub.w_tr + 2.0 * d.quad_z * sub.Dz[None, :] ** 2
         p[K * nz : K * nz + K] = 2.0 * sub.w_tr
         p[K * nz + K : self.n_quad] = 2.0 * sub.w_tr2
+        if self.n_span:  # w_tr2 on the sliding only; the final time's change at w_trT
+            p[self.n_quad : self.n_quad + self.n_span] = 2.0 * (sub.w_trT - sub.w_tr2) / sub.N
         return p
 
     def P(self, p: Array, curvature: Array | None) -> sp.csc_matrix:
         """P from the diagonal values ``p`` and the curvature blocks' values (None: none)."""
         if self.sub.hessian_blocks and curvature is not None:
-            p[self.n_quad :] = curvature
+            p[self.n_quad + self.n_span :] = curvature
         return self.P_asm.assemble(p)
 
     def q(self, d: SubproblemData) -> Array:

@@ -50,6 +50,7 @@ class FohSubproblem:
         n_inner_rows: int = 0,
         weight_trust_region: float,
         weight_trust_interval: float,
+        weight_trust_final_time: float | None = None,
         weight_buffer: float = 0.0,
         hessian_blocks: bool = False,
         identity_e: bool = False,
@@ -79,6 +80,10 @@ class FohSubproblem:
         self.adaptive = grid is not None
         self.w_tr = weight_trust_region
         self.w_tr2 = weight_trust_interval
+        self.free_final_time = grid is not None and grid.final_time is None
+        self.w_trT = (
+            weight_trust_interval if weight_trust_final_time is None else weight_trust_final_time
+        )
         self.hessian_blocks = hessian_blocks
         self.identity_e = identity_e  # E = I (exact FOH): only its diagonal is in the pattern
         # L1 buffers (virtual control) on the path, zone and between-node rows, when weighted

@@ -142,6 +142,7 @@ class FohPtr:
             n_inner_rows=len(lin.limits) + len(problem.no_fly_zones) if lin.inner_on else 0,
             weight_trust_region=options.weight_trust_region,
             weight_trust_interval=options.weight_trust_interval,
+            weight_trust_final_time=options.weight_trust_final_time,
             weight_buffer=options.weight_virtual_control,
             hessian_blocks=lin.second_order,
             identity_e=options.discretization == "exact_foh",
