@@ -75,7 +75,8 @@ def path_values(
         zero = np.zeros_like(r)
         return PathValues(zero, zero, zero, qbar, nload)
     qa, qa_a = heat.alpha_factor(ft.alpha_deg)
-    base = heat.k_q * ft.rho**heat.density_exponent * v_dim**heat.velocity_exponent
+    with np.errstate(invalid="ignore"):  # a diverged iterate's negative speed: NaN, reported
+        base = heat.k_q * ft.rho**heat.density_exponent * v_dim**heat.velocity_exponent
     qdot = base * qa
     qdot_r = qdot * heat.density_exponent * ft.rho_r / ft.rho
     qdot_v = qdot * heat.velocity_exponent / v + base * qa_a * ft.alpha_v
@@ -96,7 +97,8 @@ def limit_ratio(forces: VehicleForces, limits: PathLimits, r: Array, v: Array) -
             heat_rate = np.zeros_like(r)
         else:
             qa, _ = heat.alpha_factor(alpha)
-            base = heat.k_q * rho**heat.density_exponent * v_dim**heat.velocity_exponent
+            with np.errstate(invalid="ignore"):  # as in ``path_values``
+                base = heat.k_q * rho**heat.density_exponent * v_dim**heat.velocity_exponent
             heat_rate = base * qa
         ratio = np.maximum(ratio, heat_rate / limits.heat_max_W_m2)
     if limits.dynamic_pressure_max_Pa is not None:
