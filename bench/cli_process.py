@@ -61,11 +61,16 @@ def measure(name: str, runs: int) -> dict[str, float]:
     }
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--runs", type=int, default=5)
+    cli.add_argument("--only", nargs="*", default=None, help="scenario names (default: all)")
+    return cli
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=5)
-    parser.add_argument("--only", nargs="*", default=None, help="scenario names (default: all)")
-    args = parser.parse_args()
+    args = parser().parse_args()
     names = args.only or [s.name for s in list_scenarios()]
     print("| scenario | process s | solve (total_s) s | process - solve s (median) | max |")
     print("|---|---|---|---|---|")

@@ -63,11 +63,16 @@ def bench(nodes: int, repeats: int) -> dict[str, float]:
     }
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--repeats", type=int, default=7)
+    cli.add_argument("--nodes", type=int, nargs="+", default=[41, 121, 401])
+    return cli
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--nodes", type=int, nargs="+", default=[41, 121, 401])
-    args = parser.parse_args()
+    args = parser().parse_args()
     print(
         "| nodes | status | iterations | wall s (median) | conic s | wall/conic "
         "| wall/(conic incl. Clarabel setup) | ms/iteration | verification s | verified |"

@@ -73,14 +73,19 @@ def run(
     }
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--nodes", type=int, nargs="+", default=[40, 120, 400])
+    cli.add_argument("--grids", nargs="+", default=["adaptive"])
+    cli.add_argument("--variant", default=None, help="a foh-ptr variant of tests/variants")
+    cli.add_argument("--method", nargs="*", default=[], metavar="KEY=JSON")
+    return cli
+
+
 def main() -> None:
     """Print the table (markdown)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--nodes", type=int, nargs="+", default=[40, 120, 400])
-    parser.add_argument("--grids", nargs="+", default=["adaptive"])
-    parser.add_argument("--variant", default=None, help="a foh-ptr variant of tests/variants")
-    parser.add_argument("--method", nargs="*", default=[], metavar="KEY=JSON")
-    args = parser.parse_args()
+    args = parser().parse_args()
     method = {k: json.loads(v) for k, v in (item.split("=", 1) for item in args.method)}
     run(40, "adaptive")  # warm-up: imports, caches, compiled kernels
     print(

@@ -94,16 +94,21 @@ def run(
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", choices=("adaptive", "uniform", "trapezoid"), default=None)
-    parser.add_argument(
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--only", choices=("adaptive", "uniform", "trapezoid"), default=None)
+    cli.add_argument(
         "--guesses",
         action="store_true",
         help="instead: 40 nodes, both grids, from each constant-bank guess of GUESSES_DEG",
     )
-    parser.add_argument("--repeats", type=int, default=7, help="solves per configuration")
-    args = parser.parse_args()
+    cli.add_argument("--repeats", type=int, default=7, help="solves per configuration")
+    return cli
+
+
+def main() -> None:
+    args = parser().parse_args()
     run("uniform", "exact_foh", "sqp", 40)  # warm-up
     if args.guesses:
         print("| grid | initial bank deg | status | iterations | wall s | Vf m/s |")

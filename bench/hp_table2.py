@@ -128,14 +128,20 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--uniform-nodes", type=int, default=201)
+    cli.add_argument("--nlp-intervals", type=int, nargs="*", default=[100])
+    return cli
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--uniform-nodes", type=int, default=201)
-    parser.add_argument("--nlp-intervals", type=int, nargs="*", default=[100])
-    args = parser.parse_args()
+    cli = parser()
+    args = cli.parse_args()
     uniform = args.uniform_nodes
     if (uniform - 1) % 5:
-        parser.error("--uniform-nodes must be 5 k + 1 (intervals of degree 5)")
+        cli.error("--uniform-nodes must be 5 k + 1 (intervals of degree 5)")
     rows = [
         scp_row("hp-scp, defaults (adaptive h)", {}),
         scp_row("hp-scp, between_points staged", {"between_points": "staged"}),

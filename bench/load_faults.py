@@ -417,30 +417,35 @@ def _cleanup(args: argparse.Namespace, env: dict[str, str], schema: str) -> None
     client.close()
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--jobs", type=int, default=200)
+    cli.add_argument("--clients", type=int, default=4)
+    cli.add_argument("--scenario", default="rlv-min-heat-load")
+    cli.add_argument("--nodes", type=int, default=41)
+    cli.add_argument("--max-iterations", type=int, default=8)
+    cli.add_argument("--kill-after", type=int, default=20,
+                     help="kill worker 1 once this many jobs are terminal")  # fmt: skip
+    cli.add_argument("--restart-after-s", type=float, default=3.0)
+    cli.add_argument("--fault", choices=("worker", "api", "database", "near-limit"),
+                     default="worker", help="what is lost: a worker, the API, the database, "
+                     "or a worker whose job has run 60 %% of its time limit")  # fmt: skip
+    cli.add_argument("--job-time-limit-s", type=float, default=6.0,
+                     help="time limit of each job (--fault near-limit)")  # fmt: skip
+    cli.add_argument("--outage-s", type=float, default=20.0,
+                     help="how long the database is unreachable (--fault database)")  # fmt: skip
+    cli.add_argument("--lease-s", type=float, default=10.0)
+    cli.add_argument("--job-bound-s", type=float, default=300.0,
+                     help="every job must be terminal this long after its acceptance; the "
+                     "clients stop waiting for one that is not, and the run fails")  # fmt: skip
+    add_stack_arguments(cli, redis_db=12)
+    return cli
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the load test, print the figures, and exit 1 if any guarantee was broken."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--jobs", type=int, default=200)
-    parser.add_argument("--clients", type=int, default=4)
-    parser.add_argument("--scenario", default="rlv-min-heat-load")
-    parser.add_argument("--nodes", type=int, default=41)
-    parser.add_argument("--max-iterations", type=int, default=8)
-    parser.add_argument("--kill-after", type=int, default=20,
-                        help="kill worker 1 once this many jobs are terminal")  # fmt: skip
-    parser.add_argument("--restart-after-s", type=float, default=3.0)
-    parser.add_argument("--fault", choices=("worker", "api", "database", "near-limit"),
-                        default="worker", help="what is lost: a worker, the API, the database, "
-                        "or a worker whose job has run 60 %% of its time limit")  # fmt: skip
-    parser.add_argument("--job-time-limit-s", type=float, default=6.0,
-                        help="time limit of each job (--fault near-limit)")  # fmt: skip
-    parser.add_argument("--outage-s", type=float, default=20.0,
-                        help="how long the database is unreachable (--fault database)")  # fmt: skip
-    parser.add_argument("--lease-s", type=float, default=10.0)
-    parser.add_argument("--job-bound-s", type=float, default=300.0,
-                        help="every job must be terminal this long after its acceptance; the "
-                        "clients stop waiting for one that is not, and the run fails")  # fmt: skip
-    add_stack_arguments(parser, redis_db=12)
-    args = parser.parse_args(argv)
+    args = parser().parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="trajopt-load-") as tmp:
         report = run(args, Path(tmp))
     print(json.dumps(report, indent=2))

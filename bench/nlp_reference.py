@@ -184,19 +184,24 @@ def _terminal(nlp: EntryNlp, sol: Any) -> dict[str, float]:
     return dict(zip(TIME_STATE_NAMES, values, strict=True))
 
 
-def main() -> None:
-    """Solve the document on each mesh from both starts and print the reference as JSON."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("document", type=Path)
-    parser.add_argument("--meshes", type=int, nargs="+", default=[100, 200])
-    parser.add_argument(
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    cli.add_argument("document", type=Path)
+    cli.add_argument("--meshes", type=int, nargs="+", default=[100, 200])
+    cli.add_argument(
         "--start-from",
         type=Path,
         action="append",
         default=[],
         help="a result document whose trajectory is one more start on every mesh",
     )
-    args = parser.parse_args()
+    return cli
+
+
+def main() -> None:
+    """Solve the document on each mesh from both starts and print the reference as JSON."""
+    args = parser().parse_args()
     doc = json.loads(args.document.read_text())
     given = [json.loads(path.read_text()) for path in args.start_from]
     objective = doc["objective"]

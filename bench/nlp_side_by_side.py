@@ -99,13 +99,18 @@ def _error(value: float, reference: float | None) -> str:
     return f"{100.0 * (value / reference - 1.0):+.2f} %"
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--repeats", type=int, default=5, help="alternating pairs per problem")
+    cli.add_argument("--only", nargs="*", default=None, help="scenario names")
+    cli.add_argument("--intervals", type=int, default=None, help="NLP mesh intervals")
+    return cli
+
+
 def main() -> None:
     """Print the table (markdown)."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=5, help="alternating pairs per problem")
-    parser.add_argument("--only", nargs="*", default=None, help="scenario names")
-    parser.add_argument("--intervals", type=int, default=None, help="NLP mesh intervals")
-    args = parser.parse_args()
+    args = parser().parse_args()
     try:
         import casadi  # noqa: F401
     except ImportError:

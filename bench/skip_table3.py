@@ -220,11 +220,12 @@ def summary_table(lines_in: list[dict[str, Any]], nlp: dict[str, Any] | None) ->
     return "\n".join(lines)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS))
-    parser.add_argument("--algorithms", nargs="+", choices=ALGORITHMS, default=list(ALGORITHMS))
-    parser.add_argument(
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS))
+    cli.add_argument("--algorithms", nargs="+", choices=ALGORITHMS, default=list(ALGORITHMS))
+    cli.add_argument(
         "--nlp-intervals",
         type=int,
         nargs="*",
@@ -232,8 +233,12 @@ def main() -> None:
         metavar="N",
         help="NLP intervals per phase (none: no NLP run)",
     )
-    parser.add_argument("--json", type=Path, default=None, metavar="PATH", help="write the rows")
-    args = parser.parse_args()
+    cli.add_argument("--json", type=Path, default=None, metavar="PATH", help="write the rows")
+    return cli
+
+
+def main() -> None:
+    args = parser().parse_args()
     rows = []
     for algorithm in args.algorithms:
         for seed in args.seeds:

@@ -78,13 +78,18 @@ def _fmt(value: Any) -> str:
     return "-" if value is None else f"{float(value):.6g}"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", nargs="*", default=None, help="variant names (default: all)")
-    parser.add_argument(
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--only", nargs="*", default=None, help="variant names (default: all)")
+    cli.add_argument(
         "--option", nargs="*", default=[], metavar="METHOD.KEY=JSON", help="option overrides"
     )
-    args = parser.parse_args()
+    return cli
+
+
+def main() -> None:
+    args = parser().parse_args()
     overrides = parse_options(args.option)
     chosen = [v for v in variants() if args.only is None or v.name in args.only]
     print(

@@ -81,20 +81,26 @@ def _phased(name: str) -> bool:
     return METHODS[str(get_scenario(name).problem["method"]["name"])].phases
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--only", nargs="*", default=None, help="scenario names (default: all)")
-    parser.add_argument(
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cli.add_argument("--repeats", type=int, default=5)
+    cli.add_argument("--only", nargs="*", default=None, help="scenario names (default: all)")
+    cli.add_argument(
         "--nodes", nargs="*", type=int, default=None, help="node counts (default: each's own)"
     )
-    args = parser.parse_args()
+    return cli
+
+
+def main() -> None:
+    cli = parser()
+    args = cli.parse_args()
     warm_up()
     names = args.only or [s.name for s in list_scenarios() if not _phased(s.name)]
     phased = [name for name in names if _phased(name)]
     if phased:
-        parser.error(f"{', '.join(phased)}: a phased method's verification is timed by "
-                     "bench.skip_table3")  # fmt: skip
+        cli.error(f"{', '.join(phased)}: a phased method's verification is timed by "
+                  "bench.skip_table3")  # fmt: skip
     print(
         "| scenario | method | nodes | optimization s | verification s | verification / "
         "optimization | Python right-hand side s | its ratio | integrator steps | feasible |"

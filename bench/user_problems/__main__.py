@@ -176,14 +176,19 @@ def table(rows: list[dict[str, Any]], methods: list[str]) -> str:
     return "\n".join(lines)
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(prog="python -m bench.user_problems")
+    cli.add_argument("--problems", nargs="*", help="name prefixes (e.g. 001 004)")
+    cli.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS)
+    cli.add_argument("--time-limit", type=float, default=120.0, help="per solve, s")
+    cli.add_argument("--jobs", type=Path, help="write every solve's verdict here (JSON)")
+    return cli
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the methods on the referenced problems and print the table."""
-    parser = argparse.ArgumentParser(prog="python -m bench.user_problems")
-    parser.add_argument("--problems", nargs="*", help="name prefixes (e.g. 001 004)")
-    parser.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS)
-    parser.add_argument("--time-limit", type=float, default=120.0, help="per solve, s")
-    parser.add_argument("--jobs", type=Path, help="write every solve's verdict here (JSON)")
-    args = parser.parse_args(argv)
+    args = parser().parse_args(argv)
     loaded = load(args.problems)
     records = [r for r in loaded if reference_status(r) in ("feasible", "infeasible")]
     rows: list[dict[str, Any]] = []

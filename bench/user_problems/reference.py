@@ -281,14 +281,19 @@ def path_of(name: str) -> Path:
     return DATA_DIR / f"{name}.json"
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(prog="python -m bench.user_problems.reference")
+    cli.add_argument("--count", type=int, default=90, help="problems 0..count-1")
+    cli.add_argument("--indices", type=int, nargs="*", help="only these indices")
+    cli.add_argument("--seed", type=int, default=SEED)
+    cli.add_argument("--force", action="store_true", help="redo existing files")
+    return cli
+
+
 def main(argv: list[str] | None = None) -> int:
     """Generate and reference problems; write one JSON file each (problem + reference)."""
-    parser = argparse.ArgumentParser(prog="python -m bench.user_problems.reference")
-    parser.add_argument("--count", type=int, default=90, help="problems 0..count-1")
-    parser.add_argument("--indices", type=int, nargs="*", help="only these indices")
-    parser.add_argument("--seed", type=int, default=SEED)
-    parser.add_argument("--force", action="store_true", help="redo existing files")
-    args = parser.parse_args(argv)
+    args = parser().parse_args(argv)
     DATA_DIR.mkdir(parents=True, exist_ok=True)
     indices = args.indices if args.indices else list(range(args.count))
     for index in indices:

@@ -5,7 +5,8 @@ or (README only) an inline code span that is a command or a request: it starts w
 ``GET /``, ``{"``, is a member of a request (``"name": {`` or ``"name": [``) or a quoted message
 (``infeasible ``, ``raise ``). A test names its block by
 the document and the start of its text (an inline span by its whole text), and runs the
-document's text.
+document's text. :func:`inline_spans` gives every inline span of a document, for the commands
+its prose names (tests/unit/test_documented_bench_commands.py).
 """
 
 from __future__ import annotations
@@ -55,19 +56,28 @@ def _indented(lines: list[str], start: int) -> int:
     return end
 
 
-def _inline(document: str, text: str) -> list[Block]:
-    """The inline code spans of ``text`` that are commands or requests (spans may wrap)."""
+def _spans(document: str, prose: str) -> list[Block]:
+    """Every inline code span of ``prose`` (blocks blanked out), its white space one space each
+    (a span may wrap across lines)."""
     found = []
-    for match in _SPAN.finditer(text):
-        span = " ".join(match.group(1).split())
-        if span.startswith(INLINE_STARTS) or _MEMBER.match(span):
-            line = text.count("\n", 0, match.start()) + 1
-            found.append(Block(document, line, "inline", span))
+    for match in _SPAN.finditer(prose):
+        line = prose.count("\n", 0, match.start()) + 1
+        found.append(Block(document, line, "inline", " ".join(match.group(1).split())))
     return found
 
 
-def read_blocks(document: str) -> list[Block]:
-    """Every block of ``document`` (a path relative to the repository root), in order."""
+def _inline(document: str, prose: str) -> list[Block]:
+    """The inline code spans of ``prose`` that are commands or requests."""
+    return [
+        span
+        for span in _spans(document, prose)
+        if span.text.startswith(INLINE_STARTS) or _MEMBER.match(span.text)
+    ]
+
+
+def _split(document: str) -> tuple[list[Block], str]:
+    """The blocks of ``document`` (a path relative to the repository root), in order, and its
+    prose: its text with every block's lines blank, so a line number stays the document's."""
     text = (REPO_ROOT / document).read_text(encoding="utf-8")
     lines = text.split("\n")
     blocks: list[Block] = []
@@ -90,9 +100,21 @@ def read_blocks(document: str) -> list[Block]:
         else:
             prose.append(lines[i])
             i += 1
+    return blocks, "\n".join(prose)
+
+
+def read_blocks(document: str) -> list[Block]:
+    """Every block of ``document`` (a path relative to the repository root), in order."""
+    blocks, prose = _split(document)
     if document in INLINE_DOCUMENTS:
-        blocks.extend(_inline(document, "\n".join(prose)))
+        blocks.extend(_inline(document, prose))
     return blocks
+
+
+def inline_spans(document: str) -> list[Block]:
+    """Every inline code span of ``document`` outside its blocks, whatever its text: for the
+    commands a document names in its prose."""
+    return _spans(document, _split(document)[1])
 
 
 def all_blocks() -> list[Block]:

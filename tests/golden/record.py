@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 
 from tests.golden.cases import (
     CPU_KEY,
@@ -29,5 +29,12 @@ def main(names: list[str]) -> None:
     (DATA / VERSIONS_FILE).write_text(versions + "\n")
 
 
+def parser() -> argparse.ArgumentParser:
+    """The command's argument parser, apart so a test checks the documented commands against it."""
+    cli = argparse.ArgumentParser(prog="python -m tests.golden.record", description=__doc__)
+    cli.add_argument("cases", nargs="*", metavar="case", help="case names (default: every case)")
+    return cli
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    main(parser().parse_args().cases)

@@ -9,6 +9,7 @@ Whether the cache already holds them is read from numba's cache index, so a call
 
 from __future__ import annotations
 
+import argparse
 import sys
 import threading
 import time
@@ -113,8 +114,17 @@ def _load_kernels() -> float:
     return time.perf_counter() - start
 
 
+def parser() -> argparse.ArgumentParser:
+    """main()'s argument parser (no arguments, ``--help``), so a wrong argument is an error."""
+    return argparse.ArgumentParser(
+        prog="python -m worker.solver.warmup",
+        description="Compile the solver's kernels into numba's cache, or load them from it.",
+    )
+
+
 def main() -> None:
     """``python -m worker.solver.warmup``: fill numba's cache, saying whether it compiled."""
+    parser().parse_args()
     done = "loaded from numba's cache" if kernels_cached() else "compiled into numba's cache"
     print(f"solver kernels {done} in {warm_up():.1f} s", flush=True)
 
