@@ -13,8 +13,10 @@ limit, or on a problem the reference found infeasible, is a wrong success; a fai
 solve is an honest failure. The table gives, per method: the problems it accepts (feasible /
 infeasible by the reference), the success rate on the feasible ones, wrong successes, honest
 failures (on feasible / on infeasible problems, the latter also counted when their message names
-a path limit, zone or terminal condition), and the median iterations, CPU seconds and their
-ratio to the NLP reference's CPU seconds (the best start's meshes) on the same problems.
+a path limit, the final time, a zone or a terminal condition, and for the problems infeasible on
+purpose whether it names the constraint the generator made binding), and the median
+iterations, CPU seconds and their ratio to the NLP reference's CPU seconds (the best start's
+meshes) on the same problems. ``--tabulate`` prints the table of earlier ``--jobs`` files.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import re
 import statistics
 import sys
 import time
@@ -37,7 +40,21 @@ FLOORS = {"deg": 1.0, "s": 1.0, "m/s": 1.0, "J/m^2": 1.0}
 METHODS = ("auto", "energy-scp", "foh-ptr", "cheb-scvx", "hp-scp", "lgl-sqp")
 LIMIT_RATIO = 1.01
 """A verified path maximum above this times its limit violates it (the verification's 1 %)."""
-BINDING_WORDS = ("heat rate", "dynamic pressure", "load factor", "zone", "terminal")
+BINDING: dict[str, re.Pattern[str]] = {
+    "heat_rate": re.compile(r"heat[- ]rate"),
+    "dynamic_pressure": re.compile(r"dynamic[- ]pressure"),
+    "load_factor": re.compile(r"load[- ]factor"),
+    "zone": re.compile(r"\bzone"),
+    "final_time": re.compile(r"final time"),
+    "terminal": re.compile(r"\bterminal"),
+}
+"""What a failure's message may name as the binding constraint (a word match, case-folded)."""
+PLANTED = {
+    "heat_below_lift_up": "heat_rate",
+    "terminal_dynamic_pressure": "dynamic_pressure",
+    "downrange_beyond_speed": "final_time",
+}
+"""The constraint each infeasible-on-purpose argument of the generator makes binding."""
 
 
 def load(selection: list[str] | None) -> list[dict[str, Any]]:
@@ -115,8 +132,7 @@ def judge(record: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
     out["message"] = failure.get("message")
     if status != "succeeded":
         out["verdict"] = "honest_failure"
-        text = (failure.get("message") or "").lower()
-        out["names_constraint"] = any(word in text for word in BINDING_WORDS)
+        out.update(named_constraints(record, failure.get("message")))
         return out
     if reference_status(record) != "feasible":
         out["verdict"] = "wrong_success"
@@ -149,7 +165,8 @@ def table(rows: list[dict[str, Any]], methods: list[str]) -> str:
     """The markdown table of the runs."""
     lines = [
         "| method | accepted (feasible / infeasible) | success rate | wrong successes "
-        "| honest failures (feasible / infeasible, naming a constraint) | median iterations "
+        "| honest failures (feasible / infeasible, naming a constraint (the planted one of "
+        "those infeasible on purpose; diverged)) | median iterations "
         "| median CPU s | median NLP CPU s | CPU / NLP |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
@@ -162,13 +179,17 @@ def table(rows: list[dict[str, Any]], methods: list[str]) -> str:
         fail_f = [r for r in feasible if r["verdict"] == "honest_failure"]
         fail_i = [r for r in infeasible if r["verdict"] == "honest_failure"]
         named = [r for r in fail_i if r.get("names_constraint")]
+        planted = [r for r in fail_i if "names_planted" in r]
+        planted_ok = [r for r in planted if r["names_planted"]]
+        diverged = [r for r in fail_i if r.get("failure") == "diverged"]
         rate = f"{len(ok)}/{len(feasible)}" + (
             f" ({100 * len(ok) / len(feasible):.0f} %)" if feasible else ""
         )
         ratios = [r["cpu_s"] / r["nlp_cpu_s"] for r in ok if r.get("nlp_cpu_s")]
         lines.append(
             f"| {method} | {len(feasible)} / {len(infeasible)} | {rate} | {len(wrong)} "
-            f"| {len(fail_f)} / {len(fail_i)}, {len(named)} | "
+            f"| {len(fail_f)} / {len(fail_i)}, {len(named)} ({len(planted_ok)}/{len(planted)}"
+            f" planted; {len(diverged)} diverged) | "
             f"{_median([r['iterations'] for r in mine])} | {_median([r['cpu_s'] for r in mine])} "
             f"| {_median([r['nlp_cpu_s'] for r in ok if r.get('nlp_cpu_s')])} "
             f"| {_median(ratios)} |"
@@ -183,12 +204,52 @@ def parser() -> argparse.ArgumentParser:
     cli.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS)
     cli.add_argument("--time-limit", type=float, default=120.0, help="per solve, s")
     cli.add_argument("--jobs", type=Path, help="write every solve's verdict here (JSON)")
+    cli.add_argument(
+        "--tabulate",
+        type=Path,
+        nargs="+",
+        metavar="JOBS",
+        help="solve nothing: print the table of earlier --jobs files together (their failure "
+        "messages judged again by today's rules)",
+    )
     return cli
+
+
+def named_constraints(record: dict[str, Any], message: str | None) -> dict[str, Any]:
+    """What a failure's message names as binding, and whether it names the constraint the
+    generator planted (infeasible-on-purpose problems only)."""
+    text = (message or "").lower()
+    out: dict[str, Any] = {"named": [n for n, pattern in BINDING.items() if pattern.search(text)]}
+    out["names_constraint"] = bool(out["named"])
+    planted = PLANTED.get(record["features"].get("infeasible_on_purpose") or "")
+    if planted is not None:
+        out["names_planted"] = planted in out["named"]
+    return out
+
+
+def tabulate(paths: list[Path], methods: list[str]) -> int:
+    """Print the table of recorded rows (the last row of each problem and method wins)."""
+    records = {r["name"]: r for r in load(None)}
+    rows: dict[tuple[str, str], dict[str, Any]] = {}
+    for path in paths:
+        for row in json.loads(path.read_text()):
+            if row["verdict"] == "honest_failure":
+                row.update(named_constraints(records[row["problem"]], row.get("message")))
+            rows[(row["problem"], row["method"])] = row
+    kept = list(rows.values())
+    infeasible = len({r["problem"] for r in kept if r["reference_status"] == "infeasible"})
+    print(
+        f"{len({r['problem'] for r in kept})} problems ({infeasible} infeasible by the reference)\n"
+    )
+    print(table(kept, [m for m in methods if any(r["method"] == m for r in kept)]))
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the methods on the referenced problems and print the table."""
     args = parser().parse_args(argv)
+    if args.tabulate:
+        return tabulate(args.tabulate, args.methods)
     loaded = load(args.problems)
     records = [r for r in loaded if reference_status(r) in ("feasible", "infeasible")]
     rows: list[dict[str, Any]] = []

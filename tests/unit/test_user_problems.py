@@ -2,7 +2,8 @@
 
 The suite's problems are data committed with their references; these checks keep the generator
 that wrote them reproducible: a problem is a pure function of (seed, index), every document
-passes the contract, and the problems made infeasible on purpose say so with their argument.
+passes the contract, and the problems made infeasible on purpose say so with their argument;
+the scorer reads which constraint a failure names.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from functools import cache
 from typing import Any
 
 from app.schemas import ProblemDocument
+from bench.user_problems.__main__ import named_constraints
 from bench.user_problems.generate import INFEASIBLE_EVERY, SEED, generate
 
 INDICES = (1, INFEASIBLE_EVERY - 1, 2 * INFEASIBLE_EVERY - 1)
@@ -54,3 +56,24 @@ def test_infeasible_on_purpose_carry_their_argument() -> None:
         causes.add(features["infeasible_on_purpose"])
     assert len(causes) == 2
     assert _entry(INDICES[0])["features"]["infeasible_on_purpose"] is None
+
+
+def test_a_failure_names_the_planted_constraint_whatever_its_spelling() -> None:
+    """The messages write "heat-rate limit" and "final time"; the scorer must read them (an
+    earlier keyword list missed the hyphen and counted 5 of 17 named messages as unnamed)."""
+    record = {"features": {"infeasible_on_purpose": "heat_below_lift_up"}}
+    heat = "infeasible before any iteration: the heat-rate limit 670 kW/m^2 is below the peak"
+    assert named_constraints(record, heat) == {
+        "named": ["heat_rate"],
+        "names_constraint": True,
+        "names_planted": True,
+    }
+    record["features"]["infeasible_on_purpose"] = "downrange_beyond_speed"
+    assert named_constraints(record, heat)["names_planted"] is False
+    late = "infeasible, likely because the final time 940 s is shorter than the flight needs"
+    assert named_constraints(record, late)["names_planted"] is True
+    plain = {"features": {"infeasible_on_purpose": None}}
+    assert named_constraints(plain, "diverged at iteration 3") == {
+        "named": [],
+        "names_constraint": False,
+    }
