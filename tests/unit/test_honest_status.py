@@ -16,6 +16,7 @@ import copy
 import json
 import math
 import warnings
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ import pytest
 import scipy.sparse as sp
 
 from app.schemas import ProblemDocument
-from worker.solver.api import solve_problem
+from worker.solver.api import _time_runs_backwards, solve_problem
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
 from worker.solver.conic.problem import ConeSpec
 from worker.solver.scenarios import get_scenario
@@ -201,3 +202,30 @@ def test_an_unavoidable_zone_is_reported_infeasible_with_where_and_how_much() ->
     assert "virtual control did not vanish (norm" in message
     assert "no-fly zone 0 (wall) penetrated by" in message and "deg at t = " in message
     assert result["verification"]["no_fly_zones"][0]["within"] is False
+
+
+SUITE = Path(__file__).resolve().parents[2] / "bench" / "user_problems" / "data"
+
+
+def test_a_clock_that_runs_backwards_is_named_not_flown() -> None:
+    """Pure: an increasing clock passes; a node before its predecessor is named with times."""
+    assert _time_runs_backwards({"time_s": [0.0, 10.0, 10.0, 25.0]}) is None
+    why = _time_runs_backwards({"time_s": [0.0, 10.0, -5.0, -20.0]})
+    assert why is not None and "node 2 at t = -5.0 s after 10.0 s" in why
+    assert _time_runs_backwards({"time_s": [0.0, 0.0]}) is not None  # no flight at all
+
+
+@pytest.mark.slow
+def test_a_diverged_energy_iterate_with_negative_times_fails_without_a_traceback() -> None:
+    """User-problem suite 069 with energy-scp: the run diverges at iteration 22 and its last
+    reference's time integral is negative (-173 000 s at the end). The verification's
+    propagation had no interval to fly and raised IndexError out of solve_problem (an auto run
+    then lost every attempt); the result must be a failed, unverified one that says why."""
+    record = json.loads(next(SUITE.glob("069-*.json")).read_text())
+    raw = copy.deepcopy(record["problem"])
+    raw["method"] = {"name": "energy-scp"}
+    result = solve_problem(ProblemDocument.model_validate(raw))
+    assert result["status"] == "failed"
+    assert result["failure"]["code"] == "diverged"
+    assert "clock runs backwards" in result["failure"]["message"]
+    assert result["verification"] is None

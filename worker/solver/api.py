@@ -125,6 +125,25 @@ def _broken_code(code: str | None) -> str:
     return code if code in ("diverged", "numerical_error") else "numerical_error"
 
 
+def _time_runs_backwards(columns: dict[str, Any]) -> str | None:
+    """Why the trajectory's clock is no flight's (a node's time before its predecessor's, or
+    no time after the start), for the failure message; None for an increasing clock. Such a
+    last iterate (an energy-grid method's time integral gone negative) cannot be flown, so it
+    is not verified."""
+    t = np.asarray(columns.get("time_s") or [], dtype=float)
+    if t.size < 2:
+        return None
+    steps = np.diff(t)
+    if np.all(steps >= 0.0) and t[-1] > t[0]:
+        return None
+    k = int(np.argmin(steps)) + 1
+    return (
+        f"the last iterate's clock runs backwards (node {k} at t = {t[k]:.1f} s after "
+        f"{t[k - 1]:.1f} s; the flight ends at {t[-1]:.1f} s): not a flight, so it was not "
+        "verified; the iterates diverged (try another method, or a start near the answer)"
+    )
+
+
 def _broken_message(failure: dict[str, str] | None, where: list[str]) -> str:
     """What is non-finite, after the driver's message; the verification was skipped."""
     lead = f"{failure['message']}; " if failure and failure["message"] else ""
@@ -385,8 +404,14 @@ def solve_problem(
         weights = {term.name: term.weight for term in base.objective}
         document["objective"] = _objective(outcome.objective_terms, None, weights)
         broken = non_finite_entries({"trajectory": columns, "objective": document["objective"]})
+        backwards = _time_runs_backwards(columns)
         if broken:
             _fail(document, _broken_code(outcome.failure_code), _broken_message(failure, broken))
+        elif backwards is not None:
+            document["trajectory"] = columns
+            document["verification"] = None
+            lead = f"{failure['message']}; " if failure and failure["message"] else ""
+            _fail(document, _broken_code(outcome.failure_code), f"{lead}{backwards}")
         elif outcome.status == "cancelled":
             # stopped during the optimization: the stop still holds, so nothing is verified
             document["trajectory"] = columns
