@@ -270,6 +270,8 @@ def main(argv: list[str] | None = None) -> int:
                 **judge(record, result),
             }
             rows.append(row)
+            if args.jobs is not None:  # after every solve: a stopped run keeps what it did
+                args.jobs.write_text(json.dumps(rows, indent=1) + "\n")
             print(
                 f"{record['name']} {method}: {row['verdict']} {row['status']} "
                 f"gap={row.get('gap')} cpu={cpu:.1f}s",
@@ -283,8 +285,6 @@ def main(argv: list[str] | None = None) -> int:
         f"time limit {args.time_limit:g} s per solve\n"
     )
     print(table(rows, args.methods))
-    if args.jobs is not None:
-        args.jobs.write_text(json.dumps(rows, indent=1) + "\n")
     return 0
 
 
