@@ -229,3 +229,49 @@ def test_a_diverged_energy_iterate_with_negative_times_fails_without_a_traceback
     assert result["failure"]["code"] == "diverged"
     assert "clock runs backwards" in result["failure"]["message"]
     assert result["verification"] is None
+
+
+class _Stalling(_Backend):
+    """Fails numerically on every solve until the method's trust weight reaches ``cures``."""
+
+    def __init__(self, method: _Tightening, cures: float) -> None:
+        self.method, self.cures, self.calls = method, cures, 0
+
+    def solve(self, problem: ConeProblem, time_limit_s: float | None = None) -> ConicSolution:
+        self.calls += 1
+        if self.method.weight >= self.cures:
+            return super().solve(problem, time_limit_s)
+        return ConicSolution(
+            None, ConicStatus.NUMERICAL_ERROR, "NumericalError", None, 0.0, 9, 0.0, "f"
+        )
+
+
+class _Tightening(_Steps):
+    """A fake method with a trust weight that ``tighten`` doubles, up to 8."""
+
+    weight = 1.0
+
+    def tighten(self) -> bool:
+        if self.weight >= 8.0:
+            return False
+        self.weight *= 2.0
+        return True
+
+
+def test_driver_solves_again_under_a_heavier_trust_region_after_a_numerical_failure() -> None:
+    method = _Tightening([1.0, 1.0])
+    backend = _Stalling(method, cures=4.0)
+    outcome = run_scp(method, Budget(2, 60.0), backend)
+    assert outcome.status == "max_iterations"  # both iterations made their steps
+    assert backend.calls == 4  # failed at weights 1 and 2, solved at 4; then once more
+    assert outcome.history[0].extra["subproblem_retries"] == 2
+    assert "subproblem_retries" not in outcome.history[1].extra
+
+
+def test_driver_fails_the_subproblem_when_the_trust_region_can_grow_no_more() -> None:
+    method = _Tightening([1.0])
+    backend = _Stalling(method, cures=1e9)
+    outcome = run_scp(method, Budget(2, 60.0), backend)
+    assert (outcome.status, outcome.failure_code) == ("failed", "numerical_error")
+    assert backend.calls == 4  # weights 1, 2, 4 and 8: the three retries allowed
+    assert "iteration 1: convex subproblem numerical_error" in (outcome.failure_message or "")

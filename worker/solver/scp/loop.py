@@ -11,9 +11,11 @@ convergence only for an accepted step the method calls small whose virtual contr
 A proposal that diverges (non-finite numbers, or a step over the physical bounds of
 ``scp.divergence``) ends the run as ``failed`` with code ``diverged`` before the method judges
 it: the reference stays the last sound one, so what is reported is finite. A subproblem with
-non-finite data (a linearization that broke down) ends it as ``numerical_error``.
-The shape follows the usual SCP solver structure (e.g. the PTR and SCvx drivers of
-SCPToolbox.jl): one loop, the method's numerics behind hooks.
+non-finite data (a linearization that broke down) ends it as ``numerical_error``; so does a
+conic solver's numerical failure, unless the method has a ``tighten`` hook (heavier trust
+region, True when it could): then the subproblem about the same reference is solved again, at
+most ``TIGHTEN_RETRIES`` times. The shape follows the usual SCP solver structure (e.g. the PTR
+and SCvx drivers of SCPToolbox.jl): one loop, the method's numerics behind hooks.
 """
 
 from __future__ import annotations
@@ -160,6 +162,16 @@ def conic_limit(remaining_s: float, cap_s: float | None) -> float:
 
 
 _FAILURE_CODES = {ConicStatus.INFEASIBLE: "infeasible", ConicStatus.TIME_LIMIT: "time_limit"}
+TIGHTEN_RETRIES = 3
+"""Most re-solves of one iteration's subproblem under a heavier trust region (the method's
+``tighten``) after the conic solver failed numerically on it."""
+
+
+def _unsolved(solution: ConicSolution) -> bool:
+    """A numerical failure of the conic solver (not an infeasible subproblem or its time
+    limit): what a shorter step may cure."""
+    failed = not solution.status.usable or solution.x is None
+    return failed and solution.status not in _FAILURE_CODES
 
 
 def _non_finite_data(problem: ConeProblem) -> str | None:
@@ -234,6 +246,15 @@ def run_scp(
             )
         limit = conic_limit(clock.remaining_s(), budget.conic_time_limit_s)
         solution = method.solve(problem, conic, limit, deadline)
+        retries = 0
+        tighten = getattr(method, "tighten", None)
+        while _unsolved(solution) and tighten is not None and retries < TIGHTEN_RETRIES:
+            if not tighten():
+                break  # the trust region is as heavy as it gets
+            retries += 1  # the same reference under a heavier trust region: a shorter step
+            problem = method.subproblem(reference, linearization, it)
+            limit = conic_limit(clock.remaining_s(), budget.conic_time_limit_s)
+            solution = method.solve(problem, conic, limit, deadline)
         if not solution.status.usable or solution.x is None:
             code = _FAILURE_CODES.get(solution.status, "numerical_error")
             return outcome(
@@ -243,6 +264,8 @@ def run_scp(
                 f"({solution.solver}: {solution.raw_status})",
             )
         proposal = method.propose(reference, linearization, solution, it)
+        if retries:
+            proposal.record.extra["subproblem_retries"] = retries
         diverged = divergence(proposal.reference, proposal.record)
         if diverged is not None:
             proposal.record.iteration_wall_s = time.perf_counter() - it_start

@@ -194,6 +194,13 @@ class FohPtr:
         except InitialGuessError as exc:
             return exc
 
+    def tighten(self) -> bool:
+        """A heavier trust weight after the conic solver failed on the subproblem (the driver
+        solves it again about the same reference); False when it is at its ceiling."""
+        before = self.trust.weight
+        self.trust.rejected()
+        return self.trust.weight > before
+
     def linearize(self, reference: FohIterate) -> Linearization:
         """Subproblem data about ``reference`` (``Linearizer.data``)."""
         return self.lin.data(reference.z, reference.w, reference.s)
