@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.integration.harness import free_port, service_free_env
+from tests.integration.harness import free_port, run_cli, service_free_env
 
 pytestmark = pytest.mark.slow
 
@@ -60,15 +60,7 @@ def trajopt(tmp_path: Path) -> Trajopt:
 
     def run(*args: str, **env: str) -> Run:
         """Run ``python -m app.cli *args`` with ``env`` added."""
-        done = subprocess.run(
-            [sys.executable, "-m", "app.cli", *args],
-            cwd=tmp_path,
-            env=_env(tmp_path, env),
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
+        done = run_cli(*args, env=_env(tmp_path, env), cwd=tmp_path)
         return Run(done.returncode, done.stdout, done.stderr)
 
     return run

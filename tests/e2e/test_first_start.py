@@ -18,7 +18,13 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.integration.harness import SCENARIO, ApiServer, ServiceClient, service_free_env
+from tests.integration.harness import (
+    SCENARIO,
+    ApiServer,
+    ServiceClient,
+    run_cli,
+    service_free_env,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -108,15 +114,7 @@ def test_the_command_line_says_when_it_compiles(tmp_path: Path) -> None:
     notice = "compiling the solver's kernels"
     runs = []
     for _ in range(2):
-        done = subprocess.run(
-            [sys.executable, "-m", "app.cli", "solve", SCENARIO, "--quiet"],
-            cwd=tmp_path,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-            check=False,
-        )
+        done = run_cli("solve", SCENARIO, "--quiet", env=env, cwd=tmp_path, timeout=300)
         assert done.returncode == 0, done.stderr
         runs.append(done.stderr)
     assert notice in runs[0], runs[0]

@@ -12,13 +12,11 @@ is held to the same bar.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from tests.integration.harness import service_free_env
+from tests.integration.harness import run_cli, service_free_env
 
 pytestmark = pytest.mark.slow
 
@@ -34,15 +32,7 @@ TOLERANCE = 0.005
 def test_auto_solves_the_users_free_time_problem_within_the_bar(tmp_path: Path) -> None:
     env = service_free_env(TRAJOPT_DATA_DIR=str(tmp_path / "data"))
     out = tmp_path / "result.json"
-    done = subprocess.run(
-        [sys.executable, "-m", "app.cli", "solve", str(EXAMPLE), "-q", "-o", str(out)],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    done = run_cli("solve", str(EXAMPLE), "-q", "-o", str(out), env=env, cwd=tmp_path, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     result = json.loads(out.read_text())
     assert result["status"] == "succeeded"

@@ -289,31 +289,33 @@ class ApiServer(ServiceProcess):
             client.close()
 
 
-def create_api_key(env: dict[str, str], client: str) -> str:
-    """Run ``trajopt keys create --client`` with ``env`` and return the printed key."""
-    out = subprocess.run(
-        [sys.executable, "-m", "app.cli", "keys", "create", "--client", client],
-        cwd=REPO_ROOT,
+def run_cli(
+    *args: str,
+    env: dict[str, str],
+    cwd: Path = REPO_ROOT,
+    timeout: float = 120.0,
+    check: bool = False,
+) -> subprocess.CompletedProcess[str]:
+    """Run ``python -m app.cli ARGS`` (the ``trajopt`` command) to its end, output captured."""
+    return subprocess.run(
+        [sys.executable, "-m", "app.cli", *args],
+        cwd=cwd,
         env=env,
         capture_output=True,
         text=True,
-        check=True,
-        timeout=120,
+        check=check,
+        timeout=timeout,
     )
-    return out.stdout.strip()
+
+
+def create_api_key(env: dict[str, str], client: str) -> str:
+    """Run ``trajopt keys create --client`` with ``env`` and return the printed key."""
+    return run_cli("keys", "create", "--client", client, env=env, check=True).stdout.strip()
 
 
 def run_keys_command(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
     """Run ``trajopt keys ARGS`` with ``env``."""
-    return subprocess.run(
-        [sys.executable, "-m", "app.cli", "keys", *args],
-        cwd=REPO_ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=120,
-    )
+    return run_cli("keys", *args, env=env)
 
 
 class ServiceClient:

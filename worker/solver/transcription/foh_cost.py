@@ -78,6 +78,15 @@ class FohCost:
             p[self.n_quad : self.n_quad + self.n_span] = 2.0 * (sub.w_trT - sub.w_tr2) / sub.N
         return p
 
+    def interval_trust(self, ds: Array) -> float:
+        """The interval-trust term of the cost at the scaled interval step ``ds`` (what the P
+        entries of ``diagonal`` weigh, halved as 0.5 x'Px is)."""
+        sub = self.sub
+        value = sub.w_tr2 * float(np.sum(ds**2))
+        if self.n_span and ds.size:
+            value += (sub.w_trT - sub.w_tr2) * float(np.sum(ds)) ** 2 / ds.size
+        return value
+
     def P(self, p: Array, curvature: Array | None) -> sp.csc_matrix:
         """P from the diagonal values ``p`` and the curvature blocks' values (None: none)."""
         if self.sub.hessian_blocks and curvature is not None:

@@ -18,14 +18,6 @@ if TYPE_CHECKING:
 Array = np.ndarray
 
 
-def interval_trust(sub: Any, ds: Array) -> float:
-    """The interval-trust term of the subproblem's cost at the step ``ds`` (``FohCost``)."""
-    value = sub.w_tr2 * float(np.sum(ds**2))
-    if sub.free_final_time and ds.size:
-        value += (sub.w_trT - sub.w_tr2) * float(np.sum(ds)) ** 2 / ds.size
-    return value
-
-
 def iteration_record(
     method: FohPtr,
     iteration: int,
@@ -64,7 +56,7 @@ def iteration_record(
         cost_terms={
             **{f"objective:{n}": v for n, v in values.items()},
             "trust_region": w_tr * tr_slack,
-            "trust_interval": interval_trust(sub, new.ds),
+            "trust_interval": sub.cost.interval_trust(new.ds),
             "nonlinear_path": nl_pen,
             "no_fly_zone": zone_pen,
             "soft_terminal": soft,
