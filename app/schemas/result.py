@@ -61,6 +61,13 @@ class FailureCause(_Record):
         description="True: a necessary condition of every solution fails, so the problem has "
         "none (the solve was refused before the method ran); false: the likely cause.",
     )
+    likely: bool = Field(
+        True,
+        description="True: the figure makes the input the likely cause; false: only a possible "
+        "one (a fixed final time longer than the flights to the target take but within the "
+        "longest flight's: a flight that wanders may last it), which does not turn a failure "
+        "into infeasible.",
+    )
     value: Number = Field(
         None, description="What the pre-check's flights or geometry reach, in ``units``."
     )

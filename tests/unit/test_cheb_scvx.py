@@ -274,8 +274,8 @@ def test_a_scheduled_vehicle_flies_its_schedule_with_the_lift_share_as_control()
 
 def test_bank_rates_are_the_flown_paths_at_the_points_and_between() -> None:
     """The rates the rows bound are the verification's: LiftVectorPath.rates_at at each
-    interval's points and between samples (rtol 1e-10: the same polynomials evaluated by the
-    barycentric formula against the differentiation and interpolation matrices)."""
+    interval's points and rate samples between them (rtol 1e-8: the same polynomials evaluated
+    by the barycentric formula against the differentiation and interpolation matrices)."""
     seg = Segments.sized(19, 3, [1.0], 2)
     rng = np.random.default_rng(8)
     u = lift_controls(
@@ -285,7 +285,7 @@ def test_bank_rates_are_the_flown_paths_at_the_points_and_between() -> None:
     rates = bank_rates(seg, u, T)
     start = np.concatenate([[0.0], np.cumsum(T)])
     times = []
-    for s, (tau_b, _) in enumerate(seg.between):
+    for s, (tau_b, _) in enumerate(seg.rate_between):
         tau = np.concatenate([seg.tau(s), tau_b])
         # inside the interval (its end belongs to the next one in the path's lookup)
         times.append(start[s] + 0.5 * (np.clip(tau, -1, 1 - 1e-12) + 1.0) * T[s])

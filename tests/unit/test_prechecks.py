@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from app.schemas import ProblemDocument
-from worker.solver.failure_causes import with_methods
+from worker.solver.failure_causes import name_causes, with_methods
 from worker.solver.prechecks import likely_causes, proven_infeasible
 from worker.solver.prechecks.reach import reach_findings
 from worker.solver.problem import EntryProblem, build_problem
@@ -101,16 +101,50 @@ def test_a_reachable_target_at_a_fitting_final_time_is_not_flagged() -> None:
 
 
 def test_a_final_time_far_from_the_flight_to_the_target_is_named_with_its_figures() -> None:
-    (finding,) = reach_findings(_model(_user(final_time_s=1500.0)))
-    assert (finding.check, finding.field, finding.proven) == (
+    """Beyond the longest flight's duration (full lift-up, about 1 800 s) the final time is the
+    likely cause."""
+    (finding,) = reach_findings(_model(_user(final_time_s=2100.0)))
+    assert (finding.check, finding.field, finding.proven, finding.possible) == (
         "final_time",
         "final_time.value_s",
         False,
+        False,
     )
-    assert finding.value == 1500.0 and 1250.0 < (finding.limit or 0.0) < 1310.0
-    assert "the final time 1500 s is longer than the flight needs" in finding.message
-    assert "5 848 km" in finding.message
+    assert finding.value == 2100.0 and 1250.0 < (finding.limit or 0.0) < 1310.0
+    assert "the final time 2100 s is longer than the flight needs" in finding.message
+    assert "5 848 km" in finding.message and "the longest flight found lasts 1796 s" in (
+        finding.message
+    )
     assert "final_time.value_s near" in finding.advice and '"kind": "free"' in finding.advice
+    assert finding.as_cause()["likely"] is True
+
+
+def test_a_final_time_a_wandering_flight_may_last_is_only_a_possible_cause() -> None:
+    """1 500 s: longer than the flights that end at the target (1 250-1 310 s) but within the
+    longest flight's 1 796 s, so a flight with S-turns may last it (the NLP finds such user
+    problems feasible): named as possible, advice kept."""
+    (finding,) = reach_findings(_model(_user(final_time_s=1500.0)))
+    assert finding.possible and not finding.proven and finding.as_cause()["likely"] is False
+    assert "the final time 1500 s is longer than flights that end at the target take" in (
+        finding.message
+    )
+    assert "may not exist" in finding.message
+    assert "final_time.value_s near" in finding.advice
+
+
+def test_a_possible_cause_does_not_call_a_failed_run_infeasible() -> None:
+    """A run that diverged keeps its code when the only cause found is possible; its message
+    adds the cause as possible."""
+    doc = ProblemDocument.model_validate(_user(final_time_s=1500.0))
+    result = {
+        "status": "failed",
+        "failure": {"code": "diverged", "message": "diverged at iteration 9"},
+    }
+    advice = name_causes(result, build_problem(doc), None, doc)
+    failure = result["failure"]
+    assert failure["code"] == "diverged"
+    assert failure["message"].startswith("diverged at iteration 9; possible cause: the final time")
+    assert failure["cause"]["likely"] is False and advice
 
 
 @pytest.mark.parametrize(

@@ -94,8 +94,12 @@ def name_causes(
         return []
     if not findings:
         return []
-    causes = "; ".join(f.message for f in findings)
-    if document["status"] == "failed" and failure["code"] in RENAMED_CODES:
+    likely = [f for f in findings if not f.possible]
+    causes = "; ".join(f.message for f in likely)
+    maybe = "; ".join(f.message for f in findings if f.possible)
+    if not likely:
+        failure["message"] = f"{failure['message']}; possible cause: {maybe}"
+    elif document["status"] == "failed" and failure["code"] in RENAMED_CODES:
         was = failure["code"]
         failure["code"] = "infeasible"
         failure["message"] = f"infeasible, likely because {causes} (the run ended {was}: " + (
@@ -103,9 +107,12 @@ def name_causes(
         )
     else:
         failure["message"] = f"{failure['message']}; likely cause: {causes}"
+    if likely and maybe:
+        failure["message"] += f"; possible cause: {maybe}"
     failure["cause"] = _cause(findings)
     return [f.advice for f in findings]
 
 
 def _cause(findings: list[Finding]) -> dict[str, Any]:
-    return findings[0].as_cause()
+    """The first likely cause's record (the first possible one's when none is likely)."""
+    return min(findings, key=lambda f: f.possible).as_cause()

@@ -24,6 +24,9 @@ class Finding:
     value: float | None = None
     limit: float | None = None
     units: str | None = None
+    possible: bool = False
+    """The figure allows a solution the held flights do not show: a possible cause only, which
+    names the input but does not call a failed run infeasible."""
 
     def as_cause(self) -> dict[str, Any]:
         """The result's ``failure.cause`` record."""
@@ -34,4 +37,5 @@ class Finding:
             "value": self.value,
             "limit": self.limit,
             "units": self.units,
+            "likely": not self.possible,
         }

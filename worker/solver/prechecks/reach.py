@@ -286,11 +286,25 @@ def _final_time_findings(
     if low * (1.0 - REACH_MARGIN) <= final <= high * (1.0 + REACH_MARGIN):
         return []
     longer = final > high
+    longest = float(np.max(durations))
+    # a flight can last longer than the straight or the turning one by wandering (S-turns, a
+    # dog-leg, another angle of attack) within the longest flight's duration: only maybe
+    wander = longer and target is not None and final <= longest * (1.0 + REACH_MARGIN)
     suggest = 10.0 * round(0.05 * (low + high))
-    message = (
-        f"the final time {final:.0f} s is {'longer' if longer else 'shorter'} than the flight "
-        f"needs: {need} (banks held constant)"
-    )
+    if not longer:
+        verdict = f"the final time {final:.0f} s is shorter than the flight needs: {need}"
+    elif wander:
+        verdict = (
+            f"the final time {final:.0f} s is longer than flights that end at the target take: "
+            f"{need}; a longer flight must wander on the way (S-turns, a dog-leg) and may not "
+            f"exist, though the longest flight found lasts {longest:.0f} s"
+        )
+    else:
+        verdict = (
+            f"the final time {final:.0f} s is longer than the flight needs: {need}; the "
+            f"longest flight found lasts {longest:.0f} s"
+        )
+    message = f"{verdict} (banks held constant)"
     advice = (
         f"set final_time.value_s near {suggest:.0f} s, or a free final time "
         '(final_time: {"kind": "free"}) with a method that takes one'
@@ -305,5 +319,6 @@ def _final_time_findings(
             final,
             high if longer else low,
             "s",
+            possible=wander,
         )
     ]

@@ -28,6 +28,11 @@ from worker.solver.transcription.cgl import (
 )
 
 Array = np.ndarray
+RATE_SAMPLES_PER_GAP = 9
+"""Samples of the bank's rate in each gap between neighbouring points (its rows enter only
+where the rate nears its limit): the rate, a ratio of the lift polynomials' derivatives, peaks
+between the points, where the zones' 3 samples a gap can miss it beyond the verification's 1 %
+(docs/methods/README.md, "User-problem suite")."""
 
 
 @dataclass(frozen=True)
@@ -133,24 +138,31 @@ class Segments:
     def between(self) -> list[tuple[Array, Array]]:
         """Per segment, the samples between neighbouring points: (tau of each sample, the
         interpolation weights (samples, n_s + 1) that give a sample from the segment's points)."""
-        out = []
-        for n in self.degrees:
-            tau = cgl_points(n)
-            if self.samples_per_gap < 1:
-                out.append((np.zeros(0), np.zeros((0, n + 1))))
-                continue
-            frac = np.arange(1, self.samples_per_gap + 1) / (self.samples_per_gap + 1)
-            samples = (tau[:-1, None] + np.diff(tau)[:, None] * frac[None, :]).ravel()
-            out.append((samples, interpolate(np.eye(n + 1), n, samples)))
-        return out
+        return [self._samples(n, self.samples_per_gap) for n in self.degrees]
+
+    def _samples(self, n: int, per_gap: int) -> tuple[Array, Array]:
+        """``per_gap`` evenly spaced samples in each gap of a degree-``n`` segment's points:
+        their tau and interpolation weights."""
+        tau = cgl_points(n)
+        if per_gap < 1:
+            return np.zeros(0), np.zeros((0, n + 1))
+        frac = np.arange(1, per_gap + 1) / (per_gap + 1)
+        samples = (tau[:-1, None] + np.diff(tau)[:, None] * frac[None, :]).ravel()
+        return samples, interpolate(np.eye(n + 1), n, samples)
+
+    @cached_property
+    def rate_between(self) -> list[tuple[Array, Array]]:
+        """Per segment, the bank rate's samples between neighbouring points, as ``between``
+        but ``RATE_SAMPLES_PER_GAP`` in each gap."""
+        return [self._samples(n, RATE_SAMPLES_PER_GAP) for n in self.degrees]
 
     @cached_property
     def rate_evaluation(self) -> list[tuple[Array, Array]]:
         """Per segment, where its bank rate is checked: (E, F), each (n_s + 1 + samples,
         n_s + 1), giving the control polynomial's values (E) and tau-derivatives (F) at the
-        points followed by the between samples from the values at the points."""
+        points followed by the ``rate_between`` samples."""
         out = []
-        for s, (_, w) in enumerate(self.between):
+        for s, (_, w) in enumerate(self.rate_between):
             d = self.differentiation(s)
             eye = np.eye(d.shape[0])
             out.append((np.vstack([eye, w]), np.vstack([d, w @ d])))
