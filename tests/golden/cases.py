@@ -130,7 +130,7 @@ def strip(value: Any) -> Any:
 
 VERSIONS_FILE = "versions.json"
 """The numerical libraries' versions the recordings were made with (in ``DATA``)."""
-LIBRARIES = ("numpy", "scipy", "clarabel", "numba", "llvmlite", "pymoo")
+LIBRARIES = ("numpy", "scipy", "clarabel", "piqp", "numba", "llvmlite", "pymoo")
 """The libraries whose arithmetic the recordings depend on (pinned in constraints.txt)."""
 
 

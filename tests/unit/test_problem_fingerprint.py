@@ -39,7 +39,8 @@ def test_the_provenance_names_its_input_and_software() -> None:
     found = input_provenance(problem)
     assert found["problem_sha256"] == problem_sha256(problem)
     assert "source_job" not in found
-    for name in ("numpy", "scipy", "clarabel", "cvxpy", "numba", "llvmlite", "ussa1976", "pymoo"):
+    for name in ("numpy", "scipy", "clarabel", "piqp", "cvxpy", "numba", "llvmlite", "ussa1976",
+                 "pymoo"):  # fmt: skip
         assert found["packages"][name], name
     assert found["software"]["name"] == "entry-trajopt" and found["software"]["version"]
     trajectory = {

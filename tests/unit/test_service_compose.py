@@ -134,7 +134,7 @@ def test_the_image_installs_the_pinned_numerical_libraries() -> None:
     ignore = (DOCKER / "Dockerfile.dockerignore").read_text().splitlines()
     assert "!constraints.txt" in ignore
     pins = (DOCKER.parent / "constraints.txt").read_text()
-    for library in ("numpy", "scipy", "clarabel", "numba", "cvxpy", "pymoo", "ussa1976"):
+    for library in ("numpy", "scipy", "clarabel", "piqp", "numba", "cvxpy", "pymoo", "ussa1976"):
         assert re.search(rf"^{library}==", pins, re.MULTILINE), library
 
 

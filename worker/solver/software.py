@@ -14,6 +14,7 @@ LIBRARIES = (
     "numpy",
     "scipy",
     "clarabel",
+    "piqp",
     "cvxpy",
     "ecos",
     "scs",
@@ -25,8 +26,8 @@ LIBRARIES = (
     "pydantic",
     PROJECT,
 )
-"""The arithmetic (numpy, scipy), the conic solvers and their modelling layer (clarabel, cvxpy
-and its fallbacks ecos, scs), the compiled kernels (numba on llvmlite), the US76 atmosphere
+"""The arithmetic (numpy, scipy), the conic solvers and their modelling layer (clarabel, piqp,
+cvxpy and its fallbacks ecos, scs), the compiled kernels (numba on llvmlite), the US76 atmosphere
 (ussa1976 on xarray), the global search (pymoo), the contract's defaults (pydantic) and this
 project."""
 

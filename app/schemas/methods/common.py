@@ -56,9 +56,11 @@ class ScpRunOptions(BoundedOptions):
         f"(0, {MAX_TIME_LIMIT_S:g}]; a wall-clock safety limit of 4 x as many seconds also ends "
         "it.",
     )
-    conic_backend: Literal["clarabel", "cvxpy"] = Field(
+    conic_backend: Literal["clarabel", "piqp", "cvxpy"] = Field(
         "clarabel",
-        description='Second-order cone solver interface: "clarabel" directly, or through cvxpy.',
+        description='Subproblem solver: "clarabel" directly; "piqp" for the subproblems that are '
+        "quadratic programs (PIQP, with Clarabel for any second-order cone and for whatever "
+        'PIQP does not solve); or "cvxpy" (Clarabel through cvxpy).',
     )
     fallback_solver: Literal["ECOS", "SCS"] | None = Field(
         None,

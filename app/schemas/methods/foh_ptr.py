@@ -52,6 +52,12 @@ class FohPtrOptions(ScpRunOptions):
     """
 
     name: Literal["foh-ptr"] = Field("foh-ptr", description="Method name.")
+    conic_backend: Literal["clarabel", "piqp", "cvxpy"] = Field(
+        "piqp",
+        description='Subproblem solver: "piqp" (the default here: every subproblem of this method '
+        "is a quadratic program; PIQP, with Clarabel for whatever PIQP does not solve), "
+        '"clarabel" directly, or "cvxpy" (Clarabel through cvxpy).',
+    )
     nodes: int = Field(
         40,
         ge=MIN_NODES,

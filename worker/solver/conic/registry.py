@@ -10,9 +10,11 @@ from worker.solver.conic.base import CVXPY_SOLVERS, ConicBackend
 from worker.solver.conic.clarabel_direct import ClarabelBackend
 from worker.solver.conic.cvxpy_backend import CvxpyBackend
 from worker.solver.conic.fallback import FallbackBackend
+from worker.solver.conic.piqp_direct import PiqpBackend
 
 KNOWN_BACKENDS: tuple[str, ...] = (
     "clarabel",
+    "piqp",
     "cvxpy",
     *(f"cvxpy:{solver}" for solver in CVXPY_SOLVERS),
 )
@@ -43,6 +45,8 @@ def _make_single(name: str) -> ConicBackend:
     """Build one unwrapped backend by name, raising ValueError listing the known names."""
     if name == "clarabel":
         return ClarabelBackend()
+    if name == "piqp":
+        return PiqpBackend()
     solver = _cvxpy_solver_of(name)
     if solver is not None:
         return CvxpyBackend(solver=solver)
