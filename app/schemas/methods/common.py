@@ -10,6 +10,9 @@ from app.schemas import bounds
 from app.schemas.base import FieldProblem, StrictModel, raise_problems
 from app.schemas.limits import MAX_ITERATIONS, MAX_NODES, MAX_TIME_LIMIT_S
 
+ConicBackendName = Literal["clarabel", "piqp", "cvxpy"]
+"""The subproblem solvers a method's options may name (``worker.solver.conic.registry``)."""
+
 
 class BoundedOptions(StrictModel):
     """Options whose every number is at most ``bounds.WEIGHT_MAX`` in magnitude (the models
@@ -56,7 +59,7 @@ class ScpRunOptions(BoundedOptions):
         f"(0, {MAX_TIME_LIMIT_S:g}]; a wall-clock safety limit of 4 x as many seconds also ends "
         "it.",
     )
-    conic_backend: Literal["clarabel", "piqp", "cvxpy"] = Field(
+    conic_backend: ConicBackendName = Field(
         "clarabel",
         description='Subproblem solver: "clarabel" directly; "piqp" for the subproblems that are '
         "quadratic programs (PIQP, with Clarabel for any second-order cone and for whatever "

@@ -8,7 +8,7 @@ from pydantic import Field, model_validator
 
 from app.schemas.base import FieldProblem, raise_problems
 from app.schemas.limits import MAX_ITERATIONS, MAX_NODES
-from app.schemas.methods.common import BoundedOptions, ScpRunOptions
+from app.schemas.methods.common import BoundedOptions, ConicBackendName, ScpRunOptions
 
 MIN_NODES = 9
 """The fewest nodes foh-ptr runs with (docs/problem-contract.md, "Method": measured)."""
@@ -52,7 +52,7 @@ class FohPtrOptions(ScpRunOptions):
     """
 
     name: Literal["foh-ptr"] = Field("foh-ptr", description="Method name.")
-    conic_backend: Literal["clarabel", "piqp", "cvxpy"] = Field(
+    conic_backend: ConicBackendName = Field(
         "piqp",
         description='Subproblem solver: "piqp" (the default here: every subproblem of this method '
         "is a quadratic program; PIQP, with Clarabel for whatever PIQP does not solve), "
