@@ -245,8 +245,10 @@ def test_query_validation_is_capped_too(api: Api) -> None:
 @pytest.mark.parametrize("path", ROUTES)
 def test_one_invalid_megabyte_costs_little_cpu(api: Api, path: str) -> None:
     """Each body below fills the 1 MB limit with invalid items; before the bounds, such bodies
-    took 1.5 to 6 s of CPU and answered up to 37 MB. The bound allows 0.5 s per body: 10 to
-    50 times the measured cost, for a shared two-core machine."""
+    took 1.5 to 6 s of CPU and answered up to 37 MB. The bound allows 0.5 s per body: 6 to
+    40 times the measured cost, for a shared two-core machine. The process's CPU clock also
+    counts other threads (a collection, a previous test's helper), so each body is timed three
+    times and the least is compared: a regression costs every try, a stray thread one."""
     limit = api.settings.max_body_bytes
     aoa = {"mode": "table", "velocity_m_s": [0, 1], "alpha_deg": ["x"] * (limit // 5)}
     rows = {"model": "table", "alpha_deg": [0, 1], "mach": [0, 1], "cd": [[1, 1]] * 2}
@@ -259,12 +261,14 @@ def test_one_invalid_megabyte_costs_little_cpu(api: Api, path: str) -> None:
     for body in bodies:
         raw = json.dumps(body, separators=(",", ":")).encode()
         assert len(raw) <= limit
-        started = time.process_time()
-        response = api.post(path, raw)
-        spent = time.process_time() - started
-        assert response.status_code == 422, response.text[:300]
-        assert len(response.content) < 20_000
-        assert spent < 0.5, (spent, response.json()["error"]["message"])
+        tries = []
+        for _ in range(3):
+            started = time.process_time()
+            response = api.post(path, raw)
+            tries.append(time.process_time() - started)
+            assert response.status_code == 422, response.text[:300]
+            assert len(response.content) < 20_000
+        assert min(tries) < 0.5, (tries, response.json()["error"]["message"])
 
 
 # --- NaN with an Idempotency-Key, job ids that cannot exist ------------------------------------
