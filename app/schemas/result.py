@@ -332,6 +332,11 @@ class VerificationTolerances(_Record):
     control_limit_relative: float = Field(
         0.01, description="Allowed excess of the flown bank (and bank rate) over its limit (1)."
     )
+    objective_relative: float = Field(
+        0.01,
+        description="Allowed excess of the flown heat load (objective.propagated_value) over "
+        "the optimized one (objective.value) (1).",
+    )
 
 
 class TerminalCheck(_Record):

@@ -7,10 +7,11 @@ Each referenced problem (``data/*.json``, written by ``bench.user_problems.refer
 through the library entry point the command line uses (``worker.solver.api.solve_problem``),
 once with ``auto`` and once with each method whose own checks accept it, under a time limit, one
 solve at a time, its CPU time measured. A solve succeeds when its status is ``succeeded``
-(converged and verified) and its objective is within ``TOLERANCE`` (0.5 %) of the reference or
-better; a ``succeeded`` result more than 0.5 % worse, or with a verified path maximum above its
-limit, or on a problem the reference found infeasible, is a wrong success; a failed or timed-out
-solve is an honest failure. The table gives, per method: the problems it accepts (feasible /
+(converged and verified) and its objective — the flown one where the result has it (the heat
+load), else the optimized one — is within ``TOLERANCE`` (0.5 %) of the reference or better;
+a ``succeeded`` result more than 0.5 % worse, or with a verified path maximum above its limit,
+or on a problem the reference found infeasible, is a wrong success; a failed or timed-out solve
+is an honest failure. The table gives, per method: the problems it accepts (feasible /
 infeasible by the reference), the success rate on the feasible ones, wrong successes, honest
 failures (on feasible / on infeasible problems, the latter also counted when their message names
 a path limit, the final time, a zone or a terminal condition, and for the problems infeasible on
@@ -139,7 +140,9 @@ def judge(record: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
         out["why"] = "the reference found the problem infeasible"
         return out
     objective = record["objective"]["name"]
-    value = float((result.get("objective") or {}).get("value") or "nan")
+    entry = result.get("objective") or {}
+    flown = entry.get("propagated_value")  # the flown value where the result has one
+    value = float(flown if flown is not None else entry.get("value") or "nan")
     ref = float(record["objective"]["value"])
     unit = (result.get("objective") or {}).get("units", "")
     gap = (minimized(objective, value) - minimized(objective, ref)) / max(

@@ -55,16 +55,30 @@ def test_the_order_places_every_method_once() -> None:
         ("rlv-max-terminal-velocity-active-nfz", {}, ["foh-ptr", "cheb-scvx"]),
         # the same with a free final time: foh-ptr's intervals carry it, then cheb-scvx
         ("rlv-max-terminal-velocity", {"final_time": {"kind": "free"}}, ["foh-ptr", "cheb-scvx"]),
-        # an optimized angle of attack: cheb-scvx, hp-scp, lgl-sqp
-        ("shuttle-max-crossrange", {}, ["cheb-scvx", "hp-scp", "lgl-sqp"]),
-        # its rate limit leaves hp-scp alone
+        # an optimized angle of attack: foh-ptr (alpha as a held state), cheb-scvx, hp-scp,
+        # lgl-sqp
+        ("shuttle-max-crossrange", {}, ["foh-ptr", "cheb-scvx", "hp-scp", "lgl-sqp"]),
+        # its rate limit leaves the two that hold alpha as a state with its rate
         (
             "shuttle-max-crossrange",
             {"control_limits": {"bank_max_deg": 80, "alpha_rate_max_deg_s": 5}},
-            ["hp-scp"],
+            ["foh-ptr", "hp-scp"],
         ),
         # a parabolic polar on the flat planet, waypoints: cheb-scvx
         ("cav-h-min-time-waypoints", {}, ["cheb-scvx"]),
+        # a parabolic polar on the sphere: foh-ptr (normalized lift as a held state), cheb-scvx
+        (
+            "cav-h-min-time",
+            {
+                "objective": "max_terminal_velocity",
+                "planet": {
+                    "radius_m": 6378000,
+                    "g0_m_s2": 9.81,
+                    "atmosphere": {"model": "exponential", "scale_height_m": 7200},
+                },
+            },
+            ["foh-ptr", "cheb-scvx"],
+        ),
         # phases and propulsion: lgl-sqp
         ("shuttle-skip-min-propellant", {}, ["lgl-sqp"]),
     ],
@@ -98,6 +112,19 @@ def test_a_method_that_cannot_take_autos_nodes_is_not_tried() -> None:
         "method.intervals",
         "vehicle.angle_of_attack",
     ]
+
+
+def test_a_held_attitude_state_gets_autos_options_on_a_fixed_final_time() -> None:
+    fixed = {"final_time": {"kind": "fixed", "value_s": 2000.0}}
+    free_time = {"final_time": {"kind": "free"}}
+    foh = select(_auto("shuttle-max-crossrange", **fixed)).candidates[0]
+    assert (foh.name, foh.options.nodes) == ("foh-ptr", 80)
+    free = select(_auto("shuttle-max-crossrange")).candidates[0]
+    assert (free.name, free.options.nodes) == ("foh-ptr", 80)
+    heat = select(_auto("rlv-max-terminal-velocity", objective="min_heat_load", **free_time))
+    assert (heat.candidates[0].name, heat.candidates[0].options.nodes) == ("foh-ptr", 120)
+    scheduled = select(_auto("rlv-max-terminal-velocity")).candidates[0]
+    assert scheduled.options.nodes == 40
 
 
 def test_overrides_reach_the_method_they_name() -> None:
@@ -146,8 +173,9 @@ def test_the_capability_matrix_reads_the_checks() -> None:
     assert matrix["energy-scp"]["final_time"] == {"free": True, "fixed": False}
     assert matrix["foh-ptr"]["final_time"] == {"free": True, "fixed": True}
     assert [n for n in matrix if matrix[n]["limits"]["waypoints"]] == ["cheb-scvx"]
-    assert [n for n in matrix if matrix[n]["limits"]["alpha_rate_limit"]] == ["hp-scp"]
-    assert [n for n in matrix if matrix[n]["aerodynamics"]["parabolic_polar"]] == ["cheb-scvx"]
+    assert [n for n in matrix if matrix[n]["limits"]["alpha_rate_limit"]] == ["foh-ptr", "hp-scp"]
+    polar = [n for n in matrix if matrix[n]["aerodynamics"]["parabolic_polar"]]
+    assert polar == ["foh-ptr", "cheb-scvx"]
     assert [n for n in matrix if matrix[n]["flight"]["phases"]] == ["lgl-sqp"]
     assert not matrix["energy-scp"]["limits"]["no_fly_zones"]
     assert matrix["foh-ptr"]["limits"]["bank_rate_limit"]

@@ -7,17 +7,20 @@ differences, no Jacobians), on a reference with unequal intervals and a sign-cha
 
 from __future__ import annotations
 
+import copy
 import itertools
 
 import numpy as np
 import pytest
 
 from app.schemas import ProblemDocument
+from worker.solver.methods.foh_ptr.alpha_state import held_alpha, held_alpha_problem, with_alpha
 from worker.solver.models.layout import BANK_STATE
 from worker.solver.problem import EntryProblem, build_problem
 from worker.solver.scenarios import get_scenario
-from worker.solver.transcription.foh_exact import interval_maps
+from worker.solver.transcription.foh_exact import Dynamics, interval_maps
 from worker.solver.transcription.foh_hessian import convexify, lagrangian_hessian
+from worker.solver.transcription.foh_model import ALPHA_BANK_MODEL
 from worker.solver.transcription.time_grid import initial_reference
 
 SUBSTEPS = 2  # the method's default for the curvature integrations
@@ -51,29 +54,37 @@ def _second_differences(
     s: np.ndarray,
     weights: np.ndarray,
     h: np.ndarray,
+    dynamics: Dynamics | None = None,
 ) -> np.ndarray:
-    """d2 (weights_k . x_prop_k) / dv_i dv_j by central second differences of the end states."""
-    n = s.size
-    pairs = list(itertools.product(range(NB), range(NB)))
+    """d2 (weights_k . x_prop_k) / dv_i dv_j by central second differences of the end states;
+    v_k = (z_k, w_k, w_{k+1}, s_k) with m = w.shape[1] rates per node for another ``dynamics``."""
+    n, nz = s.size, z.shape[1]
+    m = 1 if w.ndim == 1 else w.shape[1]
+    nb = h.size
+    pairs = list(itertools.product(range(nb), range(nb)))
     signs = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
-    dv = np.zeros((len(pairs), len(signs), n, NB))
+    dv = np.zeros((len(pairs), len(signs), n, nb))
     for q, (i, j) in enumerate(pairs):
         for c, (si, sj) in enumerate(signs):
             dv[q, c, :, i] += si * h[i]
             dv[q, c, :, j] += sj * h[j]
-    dv = dv.reshape(-1, n, NB)
-    m = dv.shape[0]
+    dv = dv.reshape(-1, n, nb)
+    copies = dv.shape[0]
+    tiles = (copies,) if m == 1 else (copies, 1)
+    rates = (lambda a: a.ravel()) if m == 1 else (lambda a: a.reshape(-1, m))
     x_end = interval_maps(
-        np.tile(z[:-1], (m, 1)) + dv[..., :7].reshape(-1, 7),
-        np.tile(w[:-1], m) + dv[..., 7].ravel(),
-        np.tile(w[1:], m) + dv[..., 8].ravel(),
-        np.tile(s, m) + dv[..., 9].ravel(),
+        np.tile(z[:-1], (copies, 1)) + dv[..., :nz].reshape(-1, nz),
+        np.tile(w[:-1], tiles) + rates(dv[..., nz : nz + m]),
+        np.tile(w[1:], tiles) + rates(dv[..., nz + m : nz + 2 * m]),
+        np.tile(s, copies) + dv[..., -1].ravel(),
         problem.forces,
         problem.omega,
         SUBSTEPS,
-    ).x_prop.reshape(len(pairs), len(signs), n, 7)
+        compiled=dynamics is None,
+        dynamics=dynamics,
+    ).x_prop.reshape(len(pairs), len(signs), n, nz)
     f = np.einsum("qcni,ni->qcn", x_end, weights)
-    out = np.zeros((n, NB, NB))
+    out = np.zeros((n, nb, nb))
     for q, (i, j) in enumerate(pairs):
         out[:, i, j] = (f[q, 0] - f[q, 1] - f[q, 2] + f[q, 3]) / (4.0 * h[i] * h[j])
     return out
@@ -97,6 +108,34 @@ def test_hessian_matches_second_differences_of_the_propagation(problem: EntryPro
     err = np.max(np.abs(a - b), axis=(1, 2)) / np.max(np.abs(b), axis=(1, 2))
     assert np.all(err < 1e-4), err
     assert np.allclose(hess, np.transpose(hess, (0, 2, 1)))
+
+
+def test_hessian_of_the_alpha_bank_model_matches_second_differences() -> None:
+    """The same check on the model with the angle of attack as a second held state: 13 x 13
+    blocks (z_k (8), both rates at both ends, s_k), numpy integrations on both sides."""
+    raw = copy.deepcopy(get_scenario("shuttle-max-crossrange-heat-limited").problem)
+    shuttle = build_problem(ProblemDocument.model_validate(raw))
+    model = ALPHA_BANK_MODEL
+    alpha = held_alpha(shuttle, model.unit)
+    start = initial_reference(held_alpha_problem(shuttle, alpha, model.unit), 40, None)
+    ref = with_alpha(start, alpha)
+    z, s = ref.z[:4], ref.s[:3] * np.array([0.8, 1.0, 1.2])
+    w = ref.w[:4].copy()
+    w[:, 0] = np.radians(0.3) * shuttle.scales.time_s * np.cos(np.arange(4))
+    w[:, 1] = np.radians(0.05) * shuttle.scales.time_s * np.sin(np.arange(4))
+    weights = np.random.default_rng(3).normal(size=(s.size, 8))
+    rate = np.radians(1.0) * shuttle.scales.time_s
+    units = model.layout.trust_units(shuttle.scales)
+    scale = np.r_[units, [rate] * 4, 10.0 / shuttle.scales.time_s]
+    hess = lagrangian_hessian(
+        z, w, s, shuttle.forces, shuttle.omega, weights, 1e-5 * scale, SUBSTEPS, True,
+        compiled=False, dynamics=model.dynamics,
+    )  # fmt: skip
+    assert hess is not None and hess.shape == (s.size, 13, 13)
+    check = _second_differences(shuttle, z, w, s, weights, 1e-3 * scale, model.dynamics)
+    both = scale[None, :, None] * scale[None, None, :]
+    err = np.max(np.abs((hess - check) * both), axis=(1, 2)) / np.max(np.abs(check * both))
+    assert np.all(err < 1e-4), err  # the truncation errors of the two differences, as above
 
 
 def test_hessian_without_interval_variable_is_the_leading_block(problem: EntryProblem) -> None:

@@ -24,7 +24,7 @@ import pytest
 import scipy.sparse as sp
 
 from app.schemas import ProblemDocument
-from worker.solver.api import _time_runs_backwards, solve_problem
+from worker.solver.api import _objective_miss, _time_runs_backwards, solve_problem
 from worker.solver.conic import ConeProblem, ConicSolution, ConicStatus
 from worker.solver.conic.problem import ConeSpec
 from worker.solver.scenarios import get_scenario
@@ -213,6 +213,23 @@ def test_a_clock_that_runs_backwards_is_named_not_flown() -> None:
     why = _time_runs_backwards({"time_s": [0.0, 10.0, -5.0, -20.0]})
     assert why is not None and "node 2 at t = -5.0 s after 10.0 s" in why
     assert _time_runs_backwards({"time_s": [0.0, 0.0]}) is not None  # no flight at all
+
+
+def test_a_heat_load_flown_above_the_optimized_one_is_named() -> None:
+    """The objective check: a flown heat load more than 1 % above the one the optimizer
+    reports fails the result, naming both and the remedy; a flown load below, within the
+    tolerance, or an objective without a flown value passes. (Suite problem 052 at 40 nodes
+    with the nodes' trapezoid reported 341.2 MJ/m^2 and flew 377.7: this is that case.)"""
+    report = {"tolerances": {"objective_relative": 0.01}}
+    entry = {"name": "min_heat_load", "value": 341.2e6, "propagated_value": 377.7e6}
+    message = _objective_miss(entry, report)
+    assert message is not None
+    assert message.startswith("the flown heat load 3.777e+08 J/m^2 is 10.70 % above")
+    assert "raise method.nodes" in message
+    for flown in (344.6e6, 300.0e6):  # +0.996 % and below: confirmed
+        assert _objective_miss({**entry, "propagated_value": flown}, report) is None
+    assert _objective_miss({**entry, "propagated_value": None}, report) is None
+    assert _objective_miss(None, report) is None
 
 
 @pytest.mark.slow

@@ -204,6 +204,27 @@ def _judge(
             "verification_failed",
             "converged, but the propagated controls violate: " + "; ".join(reasons),
         )
+    elif document["status"] == "succeeded":
+        missed = _objective_miss(document.get("objective"), report)
+        if missed is not None:
+            _fail(document, "verification_failed", f"converged, but {missed}")
+
+
+def _objective_miss(objective: dict[str, Any] | None, report: dict[str, Any]) -> str | None:
+    """Why the flown objective does not confirm the optimized one: a heat load flown more than
+    ``objective_relative`` above the value the optimizer reports (its quadrature missed heating
+    between the nodes); None when it confirms or there is nothing to compare."""
+    if not objective or objective.get("propagated_value") is None:
+        return None
+    value, flown = objective["value"], objective["propagated_value"]
+    tolerance = report["tolerances"]["objective_relative"]
+    if value is None or flown <= value + tolerance * abs(value):
+        return None
+    return (
+        f"the flown heat load {flown:.6g} J/m^2 is {100 * (flown / value - 1):.2f} % above the "
+        f"optimized {value:.6g} (tolerance {100 * tolerance:g} %): the optimizer's quadrature "
+        "misses heating between its nodes; raise method.nodes or try another method"
+    )
 
 
 PHASED_DYNAMICS_NOTE = (

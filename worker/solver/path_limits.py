@@ -61,6 +61,8 @@ class PathValues:
     heat_rate_v: Array
     dynamic_pressure: Array
     load_factor: Array
+    heat_rate_a: Array | None = None
+    """d heat rate / d alpha (per degree) at fixed (r, V), where alpha is a state."""
 
 
 def path_values(
@@ -80,7 +82,7 @@ def path_values(
     qdot = base * qa
     qdot_r = qdot * heat.density_exponent * ft.rho_r / ft.rho
     qdot_v = qdot * heat.velocity_exponent / v + base * qa_a * ft.alpha_v
-    return PathValues(qdot, qdot_r, qdot_v, qbar, nload)
+    return PathValues(qdot, qdot_r, qdot_v, qbar, nload, base * qa_a)
 
 
 def limit_ratio(forces: VehicleForces, limits: PathLimits, r: Array, v: Array) -> Array:

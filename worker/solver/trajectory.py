@@ -64,11 +64,17 @@ def bank_profile_at(traj: OptimizedTrajectory, s: Array) -> Array:
         return traj.attitude.at(s)[0]
     if traj.bank_rate is None or traj.grid_kind != "time":
         return np.interp(s, grid, bank)
-    k = np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2)
+    return held_quadratic(grid, bank, traj.bank_rate, s)
+
+
+def held_quadratic(grid: Array, values: Array, rates: Array, t: Array) -> Array:
+    """An angle held by its rate, the rate linear between the nodes (first-order hold): the
+    quadratic from each node's value at times ``t`` (clipped to the grid)."""
+    k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 2)
     h = grid[k + 1] - grid[k]
-    dt = np.clip(s - grid[k], 0.0, h)
-    w0, w1 = traj.bank_rate[k], traj.bank_rate[k + 1]
-    return np.asarray(bank[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
+    dt = np.clip(t - grid[k], 0.0, h)
+    w0, w1 = rates[k], rates[k + 1]
+    return np.asarray(values[k] + w0 * dt + 0.5 * (w1 - w0) * dt * dt / h)
 
 
 def bank_rate_at(traj: OptimizedTrajectory, t: Array, bank: Array) -> Array:

@@ -85,7 +85,8 @@ def poller(should_stop: StopCheck | None) -> Callable[[], None]:
 @dataclass(frozen=True)
 class VerificationTolerances:
     """What 'feasible' means: terminal errors, relative path-limit excess, zone intrusion and
-    relative excess of the flown bank (and bank rate) over the problem's control limits."""
+    relative excess of the flown bank (and bank rate) over the problem's control limits; and
+    how far the flown objective may exceed the optimized one (``api``'s objective check)."""
 
     altitude_m: float = 500.0
     longitude_deg: float = 0.1
@@ -96,6 +97,7 @@ class VerificationTolerances:
     path_limit_relative: float = 0.01
     no_fly_zone_deg: float = 0.05
     control_limit_relative: float = 0.01
+    objective_relative: float = 0.01
 
 
 def _energy(y: Array) -> Array:

@@ -29,6 +29,12 @@ class FohStopTolerance(BoundedOptions):
     )
     heading_deg: float = Field(0.05, gt=0, description="Heading change tolerance, deg.")
     bank_deg: float = Field(2.0, gt=0, description="Bank angle change tolerance, deg.")
+    angle_of_attack_deg: float = Field(
+        0.5, gt=0, description="Angle of attack change tolerance where it is optimized, deg."
+    )
+    normalized_lift: float = Field(
+        0.005, gt=0, description="Normalized-lift change tolerance of a parabolic polar (1)."
+    )
     bank_dynamic_pressure_fraction: float = Field(
         0.01,
         ge=0,

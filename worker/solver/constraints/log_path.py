@@ -39,6 +39,8 @@ class LogPathRows:
     g: Array
     g_r: Array
     g_v: Array
+    g_a: Array | None = None
+    """Partials of ln p in the angle of attack (per degree), where it is a state."""
 
     @property
     def ratio(self) -> Array:
@@ -47,7 +49,8 @@ class LogPathRows:
 
     def take(self, index: Array | slice) -> LogPathRows:
         """The rows at a subset of the points."""
-        return LogPathRows(self.names, self.g[index], self.g_r[index], self.g_v[index])
+        g_a = None if self.g_a is None else self.g_a[index]
+        return LogPathRows(self.names, self.g[index], self.g_r[index], self.g_v[index], g_a)
 
 
 def active_limits(problem: EntryProblem) -> tuple[str, ...]:
@@ -63,13 +66,18 @@ def active_limits(problem: EntryProblem) -> tuple[str, ...]:
     return tuple(out)
 
 
-def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> LogPathRows:
-    """Linearized ln p <= ln p_max at nodes (r, V) with force terms ``ft`` evaluated there."""
+def log_path_rows(
+    problem: EntryProblem, r: Array, v: Array, ft: ForceTerms, *, alpha_state: bool = False
+) -> LogPathRows:
+    """Linearized ln p <= ln p_max at nodes (r, V) with force terms ``ft`` evaluated there;
+    with ``alpha_state`` (``ft`` at the states' own angle of attack) the partials in alpha too:
+    the heat rate's alpha factor and the load factor's CL, CD."""
     names = active_limits(problem)
     k = r.size
     g = np.zeros((k, len(names)))
     g_r = np.zeros_like(g)
     g_v = np.zeros_like(g)
+    g_a = np.zeros_like(g) if alpha_state else None
     lim = problem.limits
     pv = path_values(problem.forces, problem.heat_model, r, v, ft)
     for j, name in enumerate(names):
@@ -78,6 +86,8 @@ def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> 
             g[:, j] = np.log(pv.heat_rate / lim.heat_max_W_m2)
             g_r[:, j] = pv.heat_rate_r / pv.heat_rate
             g_v[:, j] = pv.heat_rate_v / pv.heat_rate
+            if g_a is not None and pv.heat_rate_a is not None:
+                g_a[:, j] = pv.heat_rate_a / pv.heat_rate
         elif name == "dynamic_pressure":
             assert lim.dynamic_pressure_max_Pa is not None
             g[:, j] = np.log(pv.dynamic_pressure / lim.dynamic_pressure_max_Pa)
@@ -89,7 +99,9 @@ def log_path_rows(problem: EntryProblem, r: Array, v: Array, ft: ForceTerms) -> 
             g[:, j] = 0.5 * np.log(n2) - np.log(lim.load_factor_max_g)
             g_r[:, j] = (ft.lift * ft.lift_r + ft.drag * ft.drag_r) / n2
             g_v[:, j] = (ft.lift * ft.lift_v + ft.drag * ft.drag_v) / n2
-    return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v)
+            if g_a is not None:
+                g_a[:, j] = (ft.lift * ft.lift_a + ft.drag * ft.drag_a) / n2
+    return LogPathRows(names=names, g=g, g_r=g_r, g_v=g_v, g_a=g_a)
 
 
 def path_rows_at(
@@ -109,16 +121,25 @@ def path_rows_at(
 
 
 def inner_path_rows(
-    rows: LogPathRows, samples: IntervalSamples, width: float, *, exact: bool
+    rows: LogPathRows,
+    samples: IntervalSamples,
+    width: float,
+    *,
+    exact: bool,
+    alpha: int | None = None,
+    unit: float = 1.0,
 ) -> InnerRows:
     """The log path limits between the nodes: per interval and limit, the smooth maximum of the
-    samples (``between_nodes.smooth_max_rows``, ``width`` in ln(p / p_max), ``exact``: value at
-    the worst sample), from ``rows`` evaluated at the samples (N * J points, interval-major).
-    Node rows alone let a sparse grid put a heating peak between two nodes; these close that
-    gap."""
+        samples (``between_nodes.smooth_max_rows``, ``width`` in ln(p / p_max), ``exact``: value at
+        the worst sample), from ``rows`` evaluated at the samples (N * J points, interval-major).
+        Node rows alone let a sparse grid put a heating peak between two nodes; these close that
+        gap. ``alpha``: the index of an angle-of-attack state the rows also depend on, ``unit`` the
+    aerodynamic argument (degrees) per unit of that state."""
     n, j = samples.x.shape[:2]
     m = len(rows.names)
     shape = (n, j, m)
     grads = {0: rows.g_r.reshape(shape), 3: rows.g_v.reshape(shape)}
+    if alpha is not None and rows.g_a is not None:  # per unit of the alpha state
+        grads[alpha] = rows.g_a.reshape(shape) * unit
     g = rows.g.reshape(shape)
     return smooth_max_rows(g, grads, samples, np.full(m, width), exact=exact)

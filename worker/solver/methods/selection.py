@@ -7,9 +7,10 @@ method's options as auto would try it. The methods that accept are tried in the 
 :data:`PREFERENCE`; each entry says why it stands where it does. Because each method refuses
 what it cannot fly, this order yields the feature rules: phases or propulsion -> lgl-sqp; a
 fixed final time -> foh-ptr, then cheb-scvx; a free final time beyond energy-scp's class ->
-foh-ptr (a scheduled angle of attack), then cheb-scvx; zones -> foh-ptr or cheb-scvx, then
-hp-scp; an optimized angle of attack -> cheb-scvx, hp-scp, lgl-sqp; energy-scp on its own
-class (free final time, a scheduled angle of attack, no zones, waypoints or rate limits).
+foh-ptr, then cheb-scvx; zones -> foh-ptr or cheb-scvx, then hp-scp; an optimized angle of
+attack -> foh-ptr, cheb-scvx, hp-scp, lgl-sqp; a parabolic polar -> foh-ptr (on the sphere),
+cheb-scvx; waypoints -> cheb-scvx; energy-scp on its own class (free final time, a scheduled
+angle of attack, no zones, waypoints or rate limits).
 """
 
 from __future__ import annotations
@@ -41,8 +42,10 @@ PREFERENCE: tuple[Preference, ...] = (
     Preference(
         "foh-ptr",
         "a fixed final time (paper 002's grid spans it) or a free one (its interval lengths "
-        "as time dilations); zones, a bank-rate limit and an asymmetric bank range; about a "
-        "second on its paper's cases, a few seconds on a free final time",
+        "as time dilations); zones, a bank-rate limit and an asymmetric bank range; an "
+        "optimized angle of attack (with its rate limit) or a parabolic polar's normalized "
+        "lift as a second held state; about a second on its paper's cases, a few seconds on a "
+        "free final time",
     ),
     Preference(
         "cheb-scvx",
@@ -64,9 +67,33 @@ PREFERENCE: tuple[Preference, ...] = (
 
 FREE_TIME_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 80, "max_iterations": 100}}
 """Auto's options of a method on a free final time, before the caller's ``nodes`` and
-overrides: foh-ptr's 40 nodes are paper 002's, on its fixed-time flights; a free-time minimum
-heat load skips, and its bank pulses need finer intervals and up to 100 iterations a start (its
-default; paper 002's 30 did not converge) (docs/methods/foh-ptr.md, "Free final time")."""
+overrides: foh-ptr's 40 nodes are paper 002's, on its fixed-time flights; a free-time flight
+needs finer intervals and up to 100 iterations a start (its default; paper 002's 30 did not
+converge) (docs/methods/foh-ptr.md, "Free final time")."""
+FREE_TIME_HEAT_LOAD_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 120}}
+"""On a free final time with a heat-load objective, on top of ``FREE_TIME_OPTIONS``: the
+minimum heat load skips, and its bank pulses need finer intervals still (docs/methods/foh-ptr.md,
+"Free final time"); terminal objectives converge worse at 120 nodes, so they keep 80."""
+HELD_ATTITUDE_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 80}}
+"""Auto's options of a method that holds a second attitude state (an optimized angle of
+attack, a polar's normalized lift) on a fixed final time: foh-ptr's two held rates need finer
+intervals than the bank alone (docs/methods/foh-ptr.md, "An optimized angle of attack")."""
+
+
+def _auto_defaults(name: str, doc: ProblemDocument) -> dict[str, Any] | None:
+    """Auto's options of method ``name`` for ``doc`` (the free-time ones on a free final time,
+    finer for a heat load; else the held-attitude ones where the vehicle has a second attitude
+    state), or None."""
+    if doc.final_time.kind == "free":
+        options = FREE_TIME_OPTIONS.get(name)
+        if options is not None and "min_heat_load" in doc.objective.names():
+            options = {**options, **FREE_TIME_HEAT_LOAD_OPTIONS.get(name, {})}
+        return options
+    attack = doc.vehicle.angle_of_attack
+    held = doc.vehicle.aerodynamics.model == "parabolic_polar" or (
+        attack is not None and attack.mode == "optimized"
+    )
+    return HELD_ATTITUDE_OPTIONS.get(name) if held else None
 
 
 @dataclass(frozen=True)
@@ -121,7 +148,7 @@ def select(doc: ProblemDocument) -> Selection:
     candidates: list[Candidate] = []
     refused: dict[str, list[FieldIssue]] = {}
     for name, reason in PREFERENCE:
-        defaults = FREE_TIME_OPTIONS.get(name) if doc.final_time.kind == "free" else None
+        defaults = _auto_defaults(name, doc)
         try:
             options = auto.options_for(name, defaults)
             unfit: list[FieldIssue] = []

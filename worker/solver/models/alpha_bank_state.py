@@ -48,14 +48,17 @@ def alpha_bank_state_dynamics(
     s: Array | float = 1.0,
     *,
     jacobians: bool = True,
+    unit: float = _DEG_PER_RAD,
 ) -> AlphaBankStateDerivatives:
     """Time-dilated dynamics F = s f(z, w) with analytic Jacobians (paper 002 eq. 10, 14).
 
     ``z`` is (N, 8), ``w`` (N, 2) the bank and alpha rates, ``s`` the interval length(s)
-    (scalar or (N,)); with ``s = 1`` this is plain dz/dt.
+    (scalar or (N,)); with ``s = 1`` this is plain dz/dt. ``unit``: the aerodynamic model's
+    argument per unit of the last state (degrees per radian; 1 for a polar's normalized lift,
+    which the models take in alpha's place).
     """
     sigma = z[:, SIGMA]
-    alpha_deg = z[:, ALPHA] * _DEG_PER_RAD
+    alpha_deg = z[:, ALPHA] * unit
     cs, sn = np.cos(sigma), np.sin(sigma)
     u = np.column_stack([cs, sn])
     td = time_dynamics(z[:, :_POINT], u, forces, omega, alpha_deg, jacobians=jacobians)
@@ -75,9 +78,9 @@ def alpha_bank_state_dynamics(
     # d f / d sigma = B_u (d u / d sigma) with d u / d sigma = (-sin sigma, cos sigma)
     A[:, :_POINT, SIGMA] = td.B[:, :, 0] * (-sn)[:, None] + td.B[:, :, 1] * cs[:, None]
     # d f / d alpha: only the lift and the drag depend on alpha (V', gamma', psi' of eom.rates)
-    A[:, V, ALPHA] = -ft.drag_a * _DEG_PER_RAD
-    A[:, GA, ALPHA] = ft.lift_a * u[:, 0] / z[:, V] * _DEG_PER_RAD
-    A[:, PS, ALPHA] = ft.lift_a * u[:, 1] / (z[:, V] * np.cos(z[:, GA])) * _DEG_PER_RAD
+    A[:, V, ALPHA] = -ft.drag_a * unit
+    A[:, GA, ALPHA] = ft.lift_a * u[:, 0] / z[:, V] * unit
+    A[:, PS, ALPHA] = ft.lift_a * u[:, 1] / (z[:, V] * np.cos(z[:, GA])) * unit
     s_mat = s_col[:, None, None] if s_col.ndim == 1 else s_col
     A *= s_mat
     B = np.zeros((n, _N, 2), dtype=A.dtype)

@@ -20,9 +20,10 @@ from worker.solver.trajectory import TIME_STATE_NAMES
 from worker.solver.units import Scales
 
 Array = np.ndarray
-Quantity = Literal["radius", "angle", "speed"]
+Quantity = Literal["radius", "angle", "speed", "ratio"]
 """How a state converts: radius (nondimensional 1 + h/R0, reported as altitude in metres),
-angle (radians, reported in degrees) or speed (V / sqrt(R0 g0), reported in m/s)."""
+angle (radians, reported in degrees), speed (V / sqrt(R0 g0), reported in m/s) or ratio (a
+number without unit, reported as it is: a polar's normalized lift)."""
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,8 @@ def _delta_to_nd(quantity: Quantity, value: float, scales: Scales) -> float:
         return value / scales.radius_m
     if quantity == "speed":
         return value / scales.speed_m_s
+    if quantity == "ratio":
+        return value
     return math.radians(value)
 
 
@@ -54,6 +57,8 @@ def _delta_to_si(quantity: Quantity, value: float, scales: Scales) -> float:
         return float(value * scales.radius_m)
     if quantity == "speed":
         return float(value * scales.speed_m_s)
+    if quantity == "ratio":
+        return float(value)
     return math.degrees(value)
 
 
@@ -142,6 +147,14 @@ ALPHA_BANK_STATE = StateLayout(
 )
 """Time-domain model with angle of attack and bank as states and their rates as controls:
 [r, theta, phi, V, gamma, psi, sigma, alpha] (the Shuttle problems, paper 003)."""
+
+LIFT_BANK_STATE = StateLayout(
+    "lift-bank-state",
+    (*BANK_STATE.components, StateComponent("normalized_lift", "ratio", 0.05)),
+)
+"""Time-domain model of a parabolic polar with the normalized lift lambda (CL / CL*, paper 001)
+and bank as states and their rates as controls: [r, theta, phi, V, gamma, psi, sigma, lambda].
+Trust unit 0.05 in lambda (a twentieth of its usual range)."""
 
 ENERGY = StateLayout(
     "energy",

@@ -42,7 +42,7 @@ class FohCost:
             cols=upper[1].astype(np.int64),
         )
         self.n_upper = upper[0].size
-        self.n_quad = sub.col_s.size + sub.K * (sub.nz + 1)  # the diagonal covers z, w and s
+        self.n_quad = sub.col_s.size + sub.K * (sub.nz + sub.controls)  # z, w and s
         diag = np.arange(self.n_quad)
         p_rows, p_cols = [diag], [diag]
         self.n_span = 0
@@ -67,13 +67,13 @@ class FohCost:
         the intervals' mean change m is weighted by w_trT instead: w_tr2 |ds - m|^2 + w_trT N m^2
         = w_tr2 |ds|^2 + (w_trT - w_tr2) (sum ds)^2 / N, a rank-one term on every pair."""
         sub = self.sub
-        K, nz = sub.K, sub.nz
+        K, nz, nw = sub.K, sub.nz, sub.K * sub.controls
         n_blocks = sub.N * self.n_upper if sub.hessian_blocks else 0
         p = np.zeros(self.n_quad + self.n_span + n_blocks)
         pz = p[: K * nz].reshape(K, nz)
         pz[:] = 2.0 * sub.w_tr + 2.0 * d.quad_z * sub.Dz[None, :] ** 2
-        p[K * nz : K * nz + K] = 2.0 * sub.w_tr
-        p[K * nz + K : self.n_quad] = 2.0 * sub.w_tr2
+        p[K * nz : K * nz + nw] = 2.0 * sub.w_tr
+        p[K * nz + nw : self.n_quad] = 2.0 * sub.w_tr2
         if self.n_span:  # w_tr2 on the sliding only; the final time's change at w_trT
             p[self.n_quad : self.n_quad + self.n_span] = 2.0 * (sub.w_trT - sub.w_tr2) / sub.N
         return p
@@ -105,4 +105,6 @@ class FohCost:
         }
         if sub.adaptive:
             values["s"] = d.grad_s * sub.Ds
+        if d.grad_w is not None:
+            values["w"] = d.grad_w * sub.Dw
         return sub.columns.vector(values)

@@ -77,7 +77,7 @@ class SubproblemData:
     """
 
     z: Array  # (K, nz)
-    w: Array  # (K,)
+    w: Array  # (K,), or (K, m) for m controls
     s: Array  # (N,)
     maps: IntervalMaps
     initial: Array  # (n_init,) values of the fixed initial states
@@ -92,6 +92,8 @@ class SubproblemData:
     quad_z: Array  # (K, nz)
     quad_center: Array  # (K, nz)
     inner: InnerRows | None = None
+    path_ga: Array | None = None  # (K, m) partials in an angle-of-attack state, per radian
+    grad_w: Array | None = None  # like w: the objective's gradient in the rates, when any
 
 
 @dataclass

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +34,9 @@ from worker.solver.models.bank_state_compiled import (
 from worker.solver.models.bank_state_sweeps import interval_maps_kernel
 
 Array = np.ndarray
+Dynamics = Callable[..., Any]
+"""A time-dilated model ``(z, w, forces, omega, s, jacobians=...)`` giving F, A, B, S as
+``models.bank_state.bank_state_dynamics`` does (B (N, nz) for one control, (N, nz, m) for m)."""
 
 DEFAULT_SUBSTEPS = 12
 
@@ -152,14 +156,19 @@ def foh_exact(
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
     samples: bool = False,
+    dynamics: Dynamics | None = None,
 ) -> IntervalMaps:
     """Exact FOH maps about the reference nodes ``z`` (K, 7), bank rates ``w`` (K,), lengths ``s``.
 
     Fixed-step RK4 with ``substeps`` steps in tau on every interval at once (paper 002 Theorem 1
     and eq. 24); the accuracy for a given substep count is measured in the method's docs. With
-    ``samples``, every substep is kept as well (``IntervalMaps.samples``).
+    ``samples``, every substep is kept as well (``IntervalMaps.samples``). ``dynamics``: another
+    model than the bank-state one (numpy form), e.g. ``alpha_bank_state_dynamics`` with ``z``
+    (K, 8) and ``w`` (K, 2).
     """
-    return interval_maps(z[:-1], w[:-1], w[1:], s, forces, omega, substeps, samples)
+    return interval_maps(
+        z[:-1], w[:-1], w[1:], s, forces, omega, substeps, samples, dynamics=dynamics
+    )
 
 
 def interval_maps(
@@ -173,6 +182,7 @@ def interval_maps(
     samples: bool = False,
     *,
     compiled: bool = True,
+    dynamics: Dynamics | None = None,
 ) -> IntervalMaps:
     """The exact FOH maps of independent intervals: start states ``x0`` (M, 7), end-point bank
     rates ``w0``, ``w1`` (M,) and lengths ``s`` (M,), all integrated at once.
@@ -180,33 +190,40 @@ def interval_maps(
     ``foh_exact`` calls it with consecutive nodes; the Lagrangian Hessian (``foh_hessian``) with
     perturbed copies of every interval stacked into one batch. The compiled kernel
     (``models.bank_state_sweeps``) runs the same steps when the force models have a compiled
-    form and the inputs are real; ``compiled=False`` forces the numpy form.
+    form and the inputs are real; ``compiled=False`` forces the numpy form. With another
+    ``dynamics`` (numpy form), ``x0`` is (M, nz) and ``w0``, ``w1`` (M, m) for m controls: the
+    columns of B- and of B+ are then m wide.
     """
-    params = _kernel_parameters(forces, omega, compiled, x0, w0, w1, s)
-    if params is not None:
-        xa, wa, wb, sa = float_arrays(x0, w0, w1, s)
-        aug, kept = interval_maps_kernel(xa, wa, wb, sa, params, substeps, samples)
-        return _unpack(aug, kept if samples else None)
+    if dynamics is None:
+        params = _kernel_parameters(forces, omega, compiled, x0, w0, w1, s)
+        if params is not None:
+            xa, wa, wb, sa = float_arrays(x0, w0, w1, s)
+            aug, kept = interval_maps_kernel(xa, wa, wb, sa, params, substeps, samples)
+            return _unpack(aug, kept if samples else None)
+    model = bank_state_dynamics if dynamics is None else dynamics
     n, nz = s.size, x0.shape[1]
-    state = np.zeros((n, nz, nz + 4))
+    m = 1 if np.ndim(w0) == 1 else int(np.shape(w0)[1])
+    state = np.zeros((n, nz, nz + 2 * m + 2))
     state[:, :, 0] = x0
     state[:, :, 1 : nz + 1] = np.eye(nz)
+    minus, plus, length = slice(nz + 1, nz + 1 + m), slice(nz + 1 + m, nz + 1 + 2 * m), -1
 
     def rhs(tau: float, y: Array) -> Array:
         x = y[:, :, 0]
-        d = bank_state_dynamics(x, (1.0 - tau) * w0 + tau * w1, forces, omega, s)
+        d = model(x, (1.0 - tau) * w0 + tau * w1, forces, omega, s)
         assert d.A is not None and d.B is not None
+        b = d.B if d.B.ndim == 3 else d.B[:, :, None]
         out = np.empty_like(y)
         out[:, :, 0] = d.F
         out[:, :, 1:] = np.matmul(d.A, y[:, :, 1:])
-        out[:, :, nz + 1] += (1.0 - tau) * d.B
-        out[:, :, nz + 2] += tau * d.B
-        out[:, :, nz + 3] += d.S
+        out[:, :, minus] += (1.0 - tau) * b
+        out[:, :, plus] += tau * b
+        out[:, :, length] += d.S
         return out
 
     keep: list[Array] | None = [state] if samples else None
     state = _rk4_unit_interval(rhs, state, substeps, keep)
-    return _unpack(state, np.stack(keep, axis=1) if keep else None)
+    return _unpack(state, np.stack(keep, axis=1) if keep else None, m)
 
 
 def _kernel_parameters(
@@ -219,16 +236,16 @@ def _kernel_parameters(
     return compiled_parameters(forces, omega)
 
 
-def _unpack(state: Array, kept: Array | None) -> IntervalMaps:
+def _unpack(state: Array, kept: Array | None, controls: int = 1) -> IntervalMaps:
     """IntervalMaps from the integrated [x | Phi | B- | B+ | S] (N, 7, 11) and, when kept, every
-    substep (N, J, 7, 11)."""
+    substep (N, J, 7, 11); with m ``controls`` B- and B+ are (N, nz, m)."""
     jac = state[:, :, 1:].copy()
-    nz = state.shape[1]
+    nz, m = state.shape[1], controls
     return IntervalMaps(
         Phi=jac[:, :, :nz],
-        Bm=jac[:, :, nz],
-        Bp=jac[:, :, nz + 1],
-        S=jac[:, :, nz + 2],
+        Bm=jac[:, :, nz] if m == 1 else jac[:, :, nz : nz + m],
+        Bp=jac[:, :, nz + 1] if m == 1 else jac[:, :, nz + m : nz + 2 * m],
+        S=jac[:, :, nz + 2 * m],
         x_prop=state[:, :, 0].copy(),
         samples=None if kept is None else IntervalSamples(kept),
         stacked=jac,
@@ -244,22 +261,22 @@ def propagate_nodes(
     substeps: int = DEFAULT_SUBSTEPS,
     *,
     compiled: bool = True,
+    dynamics: Dynamics | None = None,
 ) -> Array:
     """End states of every interval propagated from its own node: the values of ``foh_exact``.
 
     Same RK4 steps as ``foh_exact`` without the sensitivities (cheaper: no Jacobians).
     """
     w0, w1 = w[:-1], w[1:]
-    params = _kernel_parameters(forces, omega, compiled, z, w, s)
+    params = None if dynamics is not None else _kernel_parameters(forces, omega, compiled, z, w, s)
     if params is not None:
         xa, wa, wb, sa = float_arrays(z[:-1], w0, w1, s)
         return propagate_kernel(xa, wa, wb, sa, params, substeps, False)
     x = np.array(z[:-1], dtype=float)
+    model = bank_state_dynamics if dynamics is None else dynamics
 
     def rhs(tau: float, x: Array) -> Array:
-        return bank_state_dynamics(
-            x, (1.0 - tau) * w0 + tau * w1, forces, omega, s, jacobians=False
-        ).F
+        return model(x, (1.0 - tau) * w0 + tau * w1, forces, omega, s, jacobians=False).F
 
     return _rk4_unit_interval(rhs, x, substeps)
 
@@ -271,6 +288,7 @@ def chain_propagate(
     forces: VehicleForces,
     omega: float,
     substeps: int = DEFAULT_SUBSTEPS,
+    dynamics: Dynamics | None = None,
 ) -> Array:
     """Nodes (K, 7) of one continuous propagation from ``z0`` under the FOH bank rate ``w``.
 
@@ -281,6 +299,6 @@ def chain_propagate(
     z[0] = z0
     for i in range(k - 1):
         z[i + 1] = propagate_nodes(
-            z[i : i + 2], w[i : i + 2], s[i : i + 1], forces, omega, substeps
+            z[i : i + 2], w[i : i + 2], s[i : i + 1], forces, omega, substeps, dynamics=dynamics
         )[0]
     return z

@@ -20,7 +20,7 @@ from numba import njit
 from worker.solver.forces import VehicleForces
 from worker.solver.models.bank_state_compiled import compiled_parameters, float_arrays
 from worker.solver.models.bank_state_sweeps import lagrangian_hessian_kernel
-from worker.solver.transcription.foh_exact import IntervalMaps, interval_maps
+from worker.solver.transcription.foh_exact import Dynamics, IntervalMaps, interval_maps
 
 Array = np.ndarray
 
@@ -28,7 +28,7 @@ Array = np.ndarray
 def _jacobian(maps: IntervalMaps, with_interval: bool) -> Array:
     """[Phi | B- | B+ (| S)] of every interval, (M, 7, nb)."""
     jac = maps.jacobian
-    return jac[:, :, : jac.shape[1] + (3 if with_interval else 2)]
+    return jac if with_interval else jac[:, :, :-1]
 
 
 def lagrangian_hessian(
@@ -43,6 +43,7 @@ def lagrangian_hessian(
     with_interval: bool,
     *,
     compiled: bool = True,
+    dynamics: Dynamics | None = None,
 ) -> Array | None:
     """Hessian blocks (N, nb, nb) of sum_k weights_k . Phi_k(v_k) in the interval variables.
 
@@ -50,31 +51,40 @@ def lagrangian_hessian(
     nondimensional state units); ``steps`` (nb,) are the difference steps of z_k (7), w_k, w_{k+1}
     and, ``with_interval``, s_k. None when a perturbed integration is not finite (a reference
     that leaves the atmosphere model's range), so the caller can take a first-order step.
+    ``dynamics``: another model (numpy form) with rates ``w`` (K, m): m columns each for w_k
+    and w_{k+1}.
     """
     n, nz = s.size, z.shape[1]
-    nb = nz + 3 if with_interval else nz + 2
-    params = compiled_parameters(forces, omega) if compiled else None
+    m = 1 if w.ndim == 1 else w.shape[1]
+    nb = nz + 2 * m + (1 if with_interval else 0)
+    params = compiled_parameters(forces, omega) if compiled and dynamics is None else None
     if params is not None:  # the same differences, of adjoint gradients (models.bank_state_sweeps)
         xa, wa, wb, sa, la, ha = float_arrays(z[:-1], w[:-1], w[1:], s, weights, steps)
         hess = lagrangian_hessian_kernel(xa, wa, wb, sa, la, ha, nb, params, substeps)
         return hess if bool(np.all(np.isfinite(hess))) else None
     copies = nb + 1  # the unperturbed intervals, then one perturbed copy per variable
     x0 = np.tile(z[:-1], (copies, 1))
-    w0 = np.tile(w[:-1], copies)
-    w1 = np.tile(w[1:], copies)
+    tiles = (copies,) if m == 1 else (copies, 1)
+    w0 = np.tile(w[:-1], tiles)
+    w1 = np.tile(w[1:], tiles)
     ss = np.tile(s, copies)
     for j in range(nb):
         block = slice((j + 1) * n, (j + 2) * n)
         if j < nz:
             x0[block, j] += steps[j]
-        elif j == nz:
-            w0[block] += steps[j]
-        elif j == nz + 1:
-            w1[block] += steps[j]
+        elif j < nz + 2 * m:
+            target = w0 if j < nz + m else w1
+            c = (j - nz) % m
+            if m == 1:
+                target[block] += steps[j]
+            else:
+                target[block, c] += steps[j]
         else:
             ss[block] += steps[j]
     with np.errstate(all="ignore"):
-        maps = interval_maps(x0, w0, w1, ss, forces, omega, substeps, compiled=False)
+        maps = interval_maps(
+            x0, w0, w1, ss, forces, omega, substeps, compiled=False, dynamics=dynamics
+        )
         jac = _jacobian(maps, with_interval)
         jac = jac.reshape(copies, n, nz, nb)
         # column j: d/dv_j of J_k' weights_k (the gradient of weights . Phi_k)
@@ -173,12 +183,13 @@ def convexified_curvature(
     layout: BlockLayout,
     *,
     compiled: bool = True,
+    dynamics: Dynamics | None = None,
 ) -> Array | None:
     """The P entries of the convexified curvature blocks (``lagrangian_hessian`` through
     ``layout``), or None when a perturbed integration is not finite. ``steps`` has one entry
-    per block variable (9 or 10: with the interval length)."""
+    per block variable (9 or 10: with the interval length; nz + 2 m (+ 1) for m controls)."""
     nb = steps.size
-    params = compiled_parameters(forces, omega) if compiled else None
+    params = compiled_parameters(forces, omega) if compiled and dynamics is None else None
     if params is not None:
         xa, wa, wb, sa, la, ha = float_arrays(z[:-1], w[:-1], w[1:], s, weights, steps)
         lay = layout
@@ -186,8 +197,19 @@ def convexified_curvature(
             xa, wa, wb, sa, la, ha, nb, params, substeps, lay.keep, lay.scale, lay.rows, lay.cols
         )
         return values if ok else None
+    m = 1 if w.ndim == 1 else w.shape[1]
     hess = lagrangian_hessian(
-        z, w, s, forces, omega, weights, steps, substeps, nb == z.shape[1] + 3, compiled=False
+        z,
+        w,
+        s,
+        forces,
+        omega,
+        weights,
+        steps,
+        substeps,
+        nb == z.shape[1] + 2 * m + 1,
+        compiled=False,
+        dynamics=dynamics,
     )
     return None if hess is None else layout.values(hess)
 

@@ -72,14 +72,14 @@ def equality_blocks(sub: FohSubproblem) -> list[Block]:
             rhs=lambda d: ((d.maps.x_prop - d.z[1:]) * inv[None, :]).ravel(),
         ),
     ]
-    ni = sub.n_initial
+    ni, fixed_at = sub.n_initial, sub.initial_states
     blocks.append(
         Block(
             "initial",
             "zero",
             ni,
-            (Term(np.arange(ni), sub.col_z[0, :ni], 1.0),),
-            rhs=lambda d: (d.initial - d.z[0, :ni]) * inv[:ni],
+            (Term(np.arange(ni), sub.col_z[0, fixed_at], 1.0),),
+            rhs=lambda d: (d.initial - d.z[0, fixed_at]) * inv[fixed_at],
         )
     )
     fixed = [t for t in sub.terminal if t.kind == "fixed"]
@@ -154,16 +154,31 @@ def bank_vertex(z_bank: Array, w: Array, s: Array) -> tuple[Array, Array, Array,
     return tau, value, np.stack([s * a, s * b], axis=1), rate_part
 
 
-def bank_vertex_block(sub: FohSubproblem) -> Block:
+def _rate_of(d: SubproblemData, control: int) -> Array:
+    """The reference's rates of one control (K,)."""
+    return d.w if d.w.ndim == 1 else d.w[:, control]
+
+
+def bank_vertex_block(
+    sub: FohSubproblem,
+    state: int | None = None,
+    control: int = 0,
+    bounds: tuple[float, float] | None = None,
+    name: str = "bank_between_nodes",
+) -> Block:
     """sigma_min <= sigma <= sigma_max where the bank turns inside each interval
     (``bank_vertex``), so the flown bank, not only its node values, stays within the range:
     without these rows a bank rate that reverses within a long interval carried the bank to
     180 deg between nodes held at 80 deg (paper 002 case 1, 40 nodes). Rows k (upper) and
     N + k (lower) on sigma_k, w_k, w_{k+1} and, on the adaptive grid, s_k; at a converged
-    reference tau* is the true turning point, so the bound holds along the whole interval."""
+    reference tau* is the true turning point, so the bound holds along the whole interval.
+    ``state``, ``control`` and ``bounds`` (low, high) put the same rows on another held state
+    (an angle of attack and its rate)."""
     N = sub.N
-    sigma = sub.state_index[4]
-    cols = [sub.col_z[:-1, sigma], sub.col_w[:-1], sub.col_w[1:]]
+    sigma = sub.state_index[4] if state is None else state
+    low, high = (sub.bank_min, sub.bank_max) if bounds is None else bounds
+    w_cols = sub.col_w if sub.controls == 1 else sub.col_w[:, control]
+    cols = [sub.col_z[:-1, sigma], w_cols[:-1], w_cols[1:]]
     if sub.adaptive:
         cols.append(sub.col_s)
     col = np.stack(cols, axis=1)  # (N, 3 or 4)
@@ -172,7 +187,7 @@ def bank_vertex_block(sub: FohSubproblem) -> Block:
 
     def coefficients(d: SubproblemData) -> Array:
         """Scaled coefficients of sigma(tau*) on the interval's columns (N, 3 or 4)."""
-        _, _, on_rates, on_length = bank_vertex(d.z[:, sigma], d.w, d.s)
+        _, _, on_rates, on_length = bank_vertex(d.z[:, sigma], _rate_of(d, control), d.s)
         parts = [np.full((N, 1), Dz), on_rates * Dw]
         if sub.adaptive:
             parts.append(on_length[:, None] * Ds)
@@ -180,11 +195,11 @@ def bank_vertex_block(sub: FohSubproblem) -> Block:
 
     def rhs(d: SubproblemData) -> Array:
         """sigma_max - sigma(tau*) for the upper rows, then sigma(tau*) - sigma_min."""
-        value = bank_vertex(d.z[:, sigma], d.w, d.s)[1]
-        return np.concatenate([sub.bank_max - value, value - sub.bank_min])
+        value = bank_vertex(d.z[:, sigma], _rate_of(d, control), d.s)[1]
+        return np.concatenate([high - value, value - low])
 
     return Block(
-        "bank_between_nodes",
+        name,
         "nonneg",
         2 * N,
         (
@@ -213,7 +228,37 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
         bank_vertex_block(sub),
     ]
     if sub.bank_rate_max is not None:
-        blocks.append(bound_block("bank_rate", sub.col_w, sub.Dw, sub.bank_rate_max, lambda d: d.w))
+        blocks.append(
+            bound_block(
+                "bank_rate", sub.col_bank_rate, sub.Dw, sub.bank_rate_max, lambda d: _rate_of(d, 0)
+            )
+        )
+    alpha = sub.alpha
+    if alpha is not None:  # an angle-of-attack state: its range at and between nodes, its rate
+        a = alpha.index
+        blocks.append(
+            bound_block(
+                "angle_of_attack",
+                col_z[:, a],
+                Dz[a],
+                alpha.high,
+                lambda d: d.z[:, a],
+                lower=alpha.low,
+            )
+        )
+        blocks.append(
+            bank_vertex_block(sub, a, 1, (alpha.low, alpha.high), "angle_of_attack_between_nodes")
+        )
+        if alpha.rate_max is not None:
+            blocks.append(
+                bound_block(
+                    "angle_of_attack_rate",
+                    sub.col_w[:, 1],
+                    sub.Dw,
+                    alpha.rate_max,
+                    lambda d: d.w[:, 1],
+                )
+            )
     buffered = 0  # the buffers cover the path, zone and between-node rows in that order
 
     def buffer(size: int) -> tuple[Term[SubproblemData], ...]:
@@ -235,6 +280,7 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
                 (
                     Term(rows, col_z[:, r, None], update=lambda d: d.path_gr * Dz[r]),
                     Term(rows, col_z[:, v, None], update=lambda d: d.path_gv * Dz[v]),
+                    *_alpha_path_term(sub, rows),
                     *buffer(sub.n_limits * K),
                 ),
                 rhs=lambda d: -d.path_g.T.ravel(),
@@ -310,6 +356,20 @@ def inequality_blocks(sub: FohSubproblem) -> list[Block]:
     blocks.append(soft_block(sub.soft, last, sub.col_soft, Dz, _last_node))
     blocks.append(range_block(ranges, last, Dz, _last_node))
     return blocks
+
+
+def _alpha_path_term(sub: FohSubproblem, rows: Array) -> tuple[Term[SubproblemData], ...]:
+    """The path rows' term in an angle-of-attack state (none when alpha is scheduled)."""
+    if sub.alpha is None:
+        return ()
+    a = sub.alpha.index
+    scale = sub.Dz[a]
+
+    def values(d: SubproblemData) -> Array:
+        assert d.path_ga is not None
+        return d.path_ga * scale
+
+    return (Term(rows, sub.col_z[:, a, None], update=values),)
 
 
 def _last_node(d: SubproblemData) -> Array:

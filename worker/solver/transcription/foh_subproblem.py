@@ -1,7 +1,8 @@
 """The convex subproblem of the time-domain SCP (paper 002 Problem 2) on a fixed sparsity pattern.
 
-Decision vector x = [dz (K x nz), dw (K), ds (N, adaptive grid only), soft-terminal slacks,
-buffers], all scaled deviations from the reference: z = z_bar + Dz dz, w = w_bar + Dw dw,
+Decision vector x = [dz (K x nz), dw (K, or K x m for m controls), ds (N, adaptive grid only),
+soft-terminal slacks, buffers], all scaled deviations from the reference: z = z_bar + Dz dz,
+w = w_bar + Dw dw,
 s = s_bar + Ds ds. The rows are declared once as blocks (``foh_rows``), the objective in
 ``foh_cost``. It is a QP (no cones beyond the nonnegative orthant). The pattern is built once;
 ``build`` only writes values. With ``identity_e`` (exact FOH, E = I) the pattern holds E's
@@ -11,6 +12,7 @@ diagonal only.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,6 +26,17 @@ from worker.solver.transcription.terminal import TerminalRow
 
 Array = np.ndarray
 _INDEXED_STATES = ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s", "bank_deg")
+
+
+@dataclass(frozen=True)
+class AlphaBounds:
+    """An angle-of-attack state's place and limits (radians; the rate per nondimensional
+    time, None: unbounded)."""
+
+    index: int
+    low: float
+    high: float
+    rate_max: float | None
 
 
 class FohSubproblem:
@@ -56,6 +69,9 @@ class FohSubproblem:
         identity_e: bool = False,
         layout: StateLayout = BANK_STATE,
         bank_min: float | None = None,
+        controls: int = 1,
+        initial_states: Array | None = None,
+        alpha: AlphaBounds | None = None,
     ) -> None:
         self.K = K = nodes
         self.N = N = nodes - 1
@@ -65,9 +81,14 @@ class FohSubproblem:
         if self.Dz.shape != (nz,):
             raise ValueError(f"state_scale needs {nz} entries for the {layout.name} layout")
         self.state_index = tuple(layout.index(name) for name in _INDEXED_STATES)
+        self.controls = controls
         self.Dw = float(rate_scale)
         self.Ds = float(interval_scale)
         self.n_initial = n_initial
+        self.initial_states = (
+            np.arange(n_initial) if initial_states is None else np.asarray(initial_states)
+        )
+        self.alpha = alpha
         self.terminal = terminal
         self.soft = [t for t in terminal if t.kind == "soft"]
         self.bank_max = bank_max
@@ -91,7 +112,8 @@ class FohSubproblem:
         self.n_buffer = n_buffered if weight_buffer > 0 else 0
         self.columns = cols = Columns()
         self.col_z = cols.add("z", K, nz)
-        self.col_w = cols.add("w", K)
+        self.col_w = cols.add("w", K) if controls == 1 else cols.add("w", K, controls)
+        self.col_bank_rate = self.col_w if controls == 1 else self.col_w[:, 0]
         self.col_s = cols.add("s", N if self.adaptive else 0)
         self.col_soft = cols.add("soft", len(self.soft))
         self.col_buf = cols.add("buffer", self.n_buffer)
@@ -101,11 +123,13 @@ class FohSubproblem:
         self._soft_virtual = np.array([t.virtual for t in self.soft], dtype=bool)
         self._buf_base = weight_buffer
         self.set_virtual_factor(1.0)
-        block = [self.col_z[:-1], self.col_w[:-1, None], self.col_w[1:, None]]
+        w_cols = self.col_w.reshape(K, controls)
+        block = [self.col_z[:-1], w_cols[:-1], w_cols[1:]]
         if self.adaptive:
             block.append(self.col_s[:, None])
         self.block_cols = np.concatenate(block, axis=1)  # (N, nb) variables of each interval
-        self.block_scale = np.r_[self.Dz, self.Dw, self.Dw, [self.Ds] if self.adaptive else []]
+        rates = np.full(2 * controls, self.Dw)
+        self.block_scale = np.r_[self.Dz, rates, [self.Ds] if self.adaptive else []]
         self.rows = RowSystem(row_blocks(self), self.n)
         if self.rows.assembler.has_duplicates:
             raise AssertionError("the subproblem pattern must not repeat a (row, column) pair")

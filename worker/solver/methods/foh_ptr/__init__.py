@@ -14,6 +14,8 @@ METHOD = MethodInfo(
     features=(
         "time as independent variable, fixed or free final time (intervals as time dilations)",
         "bank angle as a state, bank rate as the control (first-order hold)",
+        "an optimized angle of attack (or a parabolic polar's normalized lift) as a second "
+        "held state, its rate a second control",
         "inverse-free exact FOH discretization stitched to the propagated reference",
         "adaptive non-uniform grid (interval lengths as decision variables)",
         "path limits (heat rate, dynamic pressure, load factor), log-transformed",

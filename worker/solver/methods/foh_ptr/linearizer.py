@@ -13,7 +13,13 @@ import numpy as np
 
 from app.schemas.methods import FohPtrOptions
 from worker.solver.constraints.between_nodes import stack_rows
-from worker.solver.constraints.log_path import active_limits, inner_path_rows, path_rows_at
+from worker.solver.constraints.log_path import (
+    LogPathRows,
+    active_limits,
+    inner_path_rows,
+    log_path_rows,
+    path_rows_at,
+)
 from worker.solver.constraints.no_fly import (
     inner_zone_rows,
     longitude_factor,
@@ -22,11 +28,11 @@ from worker.solver.constraints.no_fly import (
 )
 from worker.solver.constraints.path_compiled import limit_parameters
 from worker.solver.methods.foh_ptr.objective import TimeObjective
-from worker.solver.models.layout import BANK_STATE
 from worker.solver.problem import EntryProblem
 from worker.solver.transcription.foh_data import SubproblemData
 from worker.solver.transcription.foh_exact import IntervalMaps, foh_exact
 from worker.solver.transcription.foh_hessian import BlockLayout, convexified_curvature
+from worker.solver.transcription.foh_model import foh_model
 from worker.solver.transcription.time_trapezoid import trapezoid_maps
 
 Array = np.ndarray
@@ -34,21 +40,24 @@ Array = np.ndarray
 
 class Linearizer:
     """Builds the per-iteration ``SubproblemData`` (maps, path rows, zone rows, costs) of the
-    bank-state model (``layout.BANK_STATE``)."""
-
-    layout = BANK_STATE
+    problem's FOH model (``foh_model``: bank state, or bank and angle of attack)."""
 
     def __init__(self, problem: EntryProblem, options: FohPtrOptions, scale: Array) -> None:
         self.problem = problem
         self.options = options
         self.scale = scale
+        self.model = foh_model(problem)
+        self.layout = self.model.layout
         self.limits = active_limits(problem)
         self.zones = problem.no_fly_zones
         self.margin = 0.0
-        fixed_bank = problem.initial_bank
-        self.initial = (
-            np.r_[problem.y0, fixed_bank] if fixed_bank is not None else problem.y0.copy()
-        )
+        fixed = [(j, v) for j, v in enumerate(problem.y0)]
+        if problem.initial_bank is not None:
+            fixed.append((self.model.bank, problem.initial_bank))
+        if self.model.alpha is not None and problem.initial_alpha is not None:
+            fixed.append((self.model.alpha, problem.initial_alpha))
+        self.initial_states = np.array([j for j, _ in fixed], dtype=np.int64)
+        self.initial = np.array([v for _, v in fixed], dtype=float)
         self.objective: TimeObjective | None = None
         self.windows: list[list[int]] = []
         self.zone_clearance: list[float] = []
@@ -58,9 +67,14 @@ class Linearizer:
             and options.foh_substeps > 1
             and (self.limits or self.zones)
         )
+        # the heat load is integrated over the FOH substeps, not the nodes' trapezoid
+        self.sampled_heat = options.discretization == "exact_foh" and any(
+            t.name == "min_heat_load" for t in problem.objective
+        )
         self.inner_exact = options.intersample_smooth_max == "exact"  # value at the worst sample
         self.inner_ratio = np.zeros(len(self.limits))
-        self.path_parameters = limit_parameters(problem, self.limits)  # None: numpy rows
+        alpha_state = self.model.alpha is not None  # numpy rows, first-order steps
+        self.path_parameters = None if alpha_state else limit_parameters(problem, self.limits)
         self.second_order = bool(options.second_order)  # the schema allows it with exact_foh only
         self.difference_steps: Array | None = None  # set once the subproblem's scales are known
         self.blocks: BlockLayout | None = None  # where the curvature goes in the subproblem's P
@@ -69,7 +83,27 @@ class Linearizer:
         p, o = self.problem, self.options
         if o.discretization == "trapezoid":
             return trapezoid_maps(z, w, s, p.forces, p.omega)
-        return foh_exact(z, w, s, p.forces, p.omega, o.foh_substeps, samples=self.inner_on)
+        return foh_exact(
+            z,
+            w,
+            s,
+            p.forces,
+            p.omega,
+            o.foh_substeps,
+            samples=self.inner_on or self.sampled_heat,
+            dynamics=self.model.dynamics,
+        )
+
+    def rows_at(self, x: Array) -> LogPathRows:
+        """The log path rows at states ``x`` (..., nz): at their own angle of attack when it is a
+        state (partials in it per radian), else on the schedule."""
+        p, a = self.problem, self.model.alpha
+        r, v = x[..., 0].ravel(), x[..., 3].ravel()
+        if a is None:
+            return path_rows_at(p, r, v, self.path_parameters)
+        alpha_deg = x[..., a].ravel() * self.model.unit
+        rows = log_path_rows(p, r, v, p.forces.terms(r, v, alpha_deg), alpha_state=True)
+        return rows
 
     def curvature(self, z: Array, w: Array, s: Array, multipliers: Array | None) -> Array | None:
         """The P entries of the convexified Lagrangian curvature of the interval maps about the
@@ -93,6 +127,7 @@ class Linearizer:
             self.difference_steps,
             self.options.second_order_substeps,
             self.blocks,
+            dynamics=self.model.dynamics,
         )
 
     def report(self) -> dict[str, Any]:
@@ -121,9 +156,8 @@ class Linearizer:
             assert samples is not None
             n, j = samples.x.shape[:2]
             # one evaluation at every sample and the last node: sample 0 of interval k is node k
-            r = np.concatenate([samples.x[..., 0].ravel(), z[-1:, 0]])
-            v = np.concatenate([samples.x[..., 3].ravel(), z[-1:, 3]])
-            at_samples = path_rows_at(p, r, v, self.path_parameters)
+            points = np.concatenate([samples.x.reshape(n * j, nz), z[-1:]])
+            at_samples = self.rows_at(points)
             rows = at_samples.take(np.arange(0, n * j + 1, j))  # sample 0s, then the last node
             parts = []
             if self.limits:
@@ -133,6 +167,8 @@ class Linearizer:
                         samples,
                         o.intersample_width_log,
                         exact=self.inner_exact,
+                        alpha=self.model.alpha,
+                        unit=self.model.unit,
                     )
                 )
                 self.inner_ratio = np.exp(np.max(parts[0].worst, axis=0))
@@ -148,10 +184,11 @@ class Linearizer:
                 )
             inner = stack_rows(parts)
         else:
-            rows = path_rows_at(p, z[:, 0], z[:, 3], self.path_parameters)
+            rows = self.rows_at(z)
         if self.objective is None:
-            self.objective = TimeObjective(p, self.scale, z, s)
-        grad_z, grad_s = self.objective.gradients(z, s)
+            self.objective = TimeObjective(p, self.scale, z, s, self.model.alpha, self.model.unit)
+        sampled = mp.samples if self.sampled_heat else None
+        grad_z, grad_s, grad_w = self.objective.gradients(z, s, samples=sampled, w_shape=w.shape)
         quad = np.zeros((k, nz))
         quad_c = np.zeros((k, nz))
         if rows.names and o.weight_nonlinear > 0:
@@ -204,6 +241,8 @@ class Linearizer:
             quad_z=quad,
             quad_center=quad_c,
             inner=inner,
+            path_ga=None if rows.g_a is None else rows.g_a * self.model.unit,
+            grad_w=grad_w,
         )
         return data, rows.ratio
 

@@ -26,6 +26,12 @@ from app.schemas.methods import FohPtrOptions
 from worker.solver import side_thread
 from worker.solver.conic import ConeProblem, ConicSolution
 from worker.solver.methods.base import MethodResult, RunHooks, run_method, run_starts
+from worker.solver.methods.foh_ptr.alpha_state import (
+    HeldAttitude,
+    held_alpha,
+    held_alpha_problem,
+    with_alpha,
+)
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
 from worker.solver.methods.foh_ptr.support import grid_factor, interval_bounds
@@ -35,7 +41,8 @@ from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.foh_data import GridLimits, SubproblemData
-from worker.solver.transcription.foh_subproblem import FohSubproblem
+from worker.solver.transcription.foh_model import foh_model, lift_state_range
+from worker.solver.transcription.foh_subproblem import AlphaBounds, FohSubproblem
 from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import (
     InitialGuessError,
@@ -62,8 +69,9 @@ the mean interval: a unit step moves a node about as far whatever the node count
 
 @dataclass
 class FohIterate:
-    """A reference: nodes z (K, 7), bank rates w (K,), interval lengths s (K-1,), the dynamics
-    rows' multipliers of the subproblem that made it, and the objective terms on it (SI)."""
+    """A reference: nodes z (K, nz), rates w (K,) or (K, 2) with an angle-of-attack state,
+    interval lengths s (K-1,), the dynamics rows' multipliers of the subproblem that made it,
+    and the objective terms on it (SI)."""
 
     z: Array
     w: Array
@@ -94,7 +102,8 @@ class FohPtr:
     ) -> None:
         self.problem, self.options = problem, options
         self.start_bank_deg = options.initial_bank_deg if start_bank_deg is None else start_bank_deg
-        layout = Linearizer.layout
+        self.model = foh_model(problem)
+        layout = self.model.layout
         sc = problem.scales
         self.scale = layout.trust_units(sc)
         self.lin = Linearizer(problem, options, self.scale)
@@ -146,6 +155,10 @@ class FohPtr:
             weight_buffer=options.weight_virtual_control,
             hessian_blocks=lin.second_order,
             identity_e=options.discretization == "exact_foh",
+            layout=layout,
+            controls=self.model.controls,
+            initial_states=lin.initial_states,
+            alpha=_alpha_bounds(problem, self.model.alpha),
         )
         lin.difference_steps = DIFFERENCE_STEP * self.sub.block_scale
         lin.blocks = self.sub.curvature_layout
@@ -186,13 +199,25 @@ class FohPtr:
 
     def _first_reference(self) -> Reference | InitialGuessError:
         """The initial reference (``start``), or why there is none; made at construction
-        because a free final time's grid bounds scale with its flight time."""
-        if self.problem.guess is not None:
-            return guess_reference(self.problem, self.options.nodes)
+        because a free final time's grid bounds scale with its flight time. With an optimized
+        angle of attack, the bank-state reference flown at a held one (``alpha_state``)."""
+        problem, nodes = self.problem, self.options.nodes
+        alpha = None
+        if self.model.alpha is not None:
+            alpha = held_alpha(problem, self.model.unit)
+            problem = held_alpha_problem(problem, alpha, self.model.unit)
         try:
-            return initial_reference(self.problem, self.options.nodes, self.start_bank_deg)
+            if self.problem.guess is not None:
+                ref = guess_reference(problem, nodes)
+                if alpha is not None:
+                    t = np.concatenate([[0.0], np.cumsum(ref.s)])
+                    given = self.problem.guess.alpha_on_times(t)
+                    return with_alpha(ref, given if given is not None else alpha)
+                return ref
+            ref = initial_reference(problem, nodes, self.start_bank_deg)
         except InitialGuessError as exc:
             return exc
+        return ref if alpha is None else with_alpha(ref, alpha)
 
     def tighten(self) -> bool:
         """A heavier trust weight after the conic solver failed on the subproblem (the driver
@@ -266,8 +291,9 @@ class FohPtr:
         report = self.lin.report()
         candidate = self.lin.data(new.z, new.w, new.s)  # the next linearization judges this step
         assert self.lin.objective is not None
-        values = self.lin.objective.values(new.z, new.s)
-        step = np.concatenate([new.dz.ravel(), new.dw])
+        sampled = candidate[0].maps.samples if self.lin.sampled_heat else None
+        values = self.lin.objective.values(new.z, new.s, samples=sampled)
+        step = np.concatenate([new.dz.ravel(), new.dw.ravel()])
         record, small, virtual = iteration_record(
             self, iteration, reference, new, data, ratio, report, values, solution, lin_s, step
         )
@@ -321,7 +347,21 @@ class FohPtr:
         """The nodes as a time-grid trajectory, with the FOH bank rate for exact bank
         propagation."""
         t = np.concatenate([[0.0], np.cumsum(reference.s)])
-        sigma = reference.z.shape[1] - 1
+        sigma, alpha = self.model.bank, self.model.alpha
+        if alpha is not None:  # both attitude states held as the subproblem holds them
+            z, w = reference.z, reference.w
+            return OptimizedTrajectory(
+                "time",
+                t,
+                z[:, :6].copy(),
+                t,
+                z[:, sigma].copy(),
+                alpha_deg=z[:, alpha] * self.model.unit,
+                bank_rate=w[:, 0].copy(),
+                attitude=HeldAttitude(
+                    t, z[:, sigma].copy(), z[:, alpha].copy(), w.copy(), self.model.unit
+                ),
+            )
         return OptimizedTrajectory(
             "time",
             t,
@@ -336,6 +376,16 @@ class FohPtr:
         return dict(outcome.reference.values) if outcome.reference is not None else {}
 
 
+def _alpha_bounds(problem: EntryProblem, index: int | None) -> AlphaBounds | None:
+    """An alpha state's index, range and rate bound (an optimized angle of attack's, or a
+    polar's normalized lift without a rate bound), else None."""
+    bounds = lift_state_range(problem)
+    if index is None or bounds is None:
+        return None
+    rate = problem.alpha_rate_max if problem.lift_range is None else None
+    return AlphaBounds(index, bounds[0], bounds[1], rate)
+
+
 def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]) -> MethodResult:
     """Run paper 002's SCP on ``problem`` (fixed or free final time) with its ``options``."""
     if compiled_parameters(problem.forces, problem.omega) is not None:
@@ -345,9 +395,10 @@ def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]
         and problem.initial_bank_deg is None
         and problem.guess is None  # a guess sets the bank's sign: one start from it
     )
-    banks = (
-        sign_start_banks(problem, options.nodes) if free_bank and options.bank_sign_starts else []
-    )
+    swept, model = problem, foh_model(problem)
+    if model.alpha is not None:  # the sweep flies the start's held alpha
+        swept = held_alpha_problem(problem, held_alpha(problem, model.unit), model.unit)
+    banks = sign_start_banks(swept, options.nodes) if free_bank and options.bank_sign_starts else []
     if len(banks) < 2:
         return run_method(lambda: FohPtr(problem, options), options, hooks)
     made: list[FohPtr] = []

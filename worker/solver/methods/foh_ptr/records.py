@@ -84,7 +84,7 @@ def iteration_record(
             "node_times_s": t_nodes.tolist(),
         },
     )
-    bank = z.shape[1] - 1
+    bank = method.model.bank
     authority = bank_authority(method, z, new.z)
     tested = change.copy()  # the bank's change only where it turns a lift worth the name
     tested[bank] = float(np.max(np.abs(new.z[authority, bank] - z[authority, bank]), initial=0.0))

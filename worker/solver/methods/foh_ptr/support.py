@@ -25,7 +25,7 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     """Features the time-domain FOH method cannot express, and grid consistency."""
     out: list[FieldIssue] = []
     out.extend(_final_time_issues(doc))
-    out.extend(scheduled_alpha_issues(doc, NAME))
+    out.extend(_alpha_issues(doc))
     if doc.waypoints:
         out.append(issue("waypoints", f"{NAME} does not handle waypoints yet"))
     if doc.energy is not None:
@@ -37,6 +37,34 @@ def check_support(doc: ProblemDocument) -> list[FieldIssue]:
     options = doc.method
     if isinstance(options, FohPtrOptions):
         out.extend(_grid_issues(doc, options))
+    return out
+
+
+def _alpha_issues(doc: ProblemDocument) -> list[FieldIssue]:
+    """A scheduled angle of attack is flown as given; an optimized one, or a parabolic polar's
+    normalized lift, becomes a second held state (its rate a second control) on the exact FOH
+    discretization only."""
+    attack = doc.vehicle.angle_of_attack
+    polar = doc.vehicle.aerodynamics.model == "parabolic_polar"
+    if not polar and (attack is None or attack.mode != "optimized"):
+        return scheduled_alpha_issues(doc, NAME)
+    out = []
+    if polar and doc.control_limits.alpha_rate_max_deg_s is not None:
+        out.append(
+            issue(
+                "control_limits.alpha_rate_max_deg_s",
+                f"{NAME} flies a polar's normalized lift, which has no angle of attack to limit",
+            )
+        )
+    options = doc.method
+    if isinstance(options, FohPtrOptions) and options.discretization != "exact_foh":
+        out.append(
+            issue(
+                "method.discretization",
+                f"{NAME} holds an optimized angle of attack or normalized lift on the "
+                '"exact_foh" discretization only; leave discretization out',
+            )
+        )
     return out
 
 
