@@ -33,8 +33,9 @@ class InnerRows:
     Row (k, m): g + c_z . dz_k + c_wm dw_k + c_wp dw_{k+1} + c_s ds_k <= 0: constraint m over
     interval k's samples (the smooth maximum of ``constraints.between_nodes``) carried through
     the exact FOH deviation maps, in nondimensional units. ``c`` holds the four coefficients
-    side by side, [c_z | c_wm | c_wp | c_s] (nz + 3 columns for nz states); ``worst`` is the
-    largest sample value itself, for reports.
+    side by side, [c_z | c_wm | c_wp | c_s] (nz + 3 columns for nz states and one control;
+    the properties below read that layout, nz + 2 m + 1 columns for m controls); ``worst`` is
+    the largest sample value itself, for reports.
     """
 
     g: Array  # (N, m)

@@ -43,7 +43,8 @@ DEFAULT_SUBSTEPS = 12
 
 @dataclass
 class IntervalMaps:
-    """Per-interval linear maps of the subproblem dynamics (N intervals, 7 states).
+    """Per-interval linear maps of the subproblem dynamics (N intervals, 7 states; with another
+    model nz states and Bm, Bp (N, nz, m) for m controls).
 
     E dz_{k+1} = Phi dz_k + Bm dw_k + Bp dw_{k+1} + S ds_k + (x_prop - z_ref_{k+1}). For the exact
     FOH discretization E is the identity; the trapezoidal rule has E = I - s/2 A_{k+1}.

@@ -2,11 +2,10 @@
 
 Decision vector x = [dz (K x nz), dw (K, or K x m for m controls), ds (N, adaptive grid only),
 soft-terminal slacks, buffers], all scaled deviations from the reference: z = z_bar + Dz dz,
-w = w_bar + Dw dw,
-s = s_bar + Ds ds. The rows are declared once as blocks (``foh_rows``), the objective in
-``foh_cost``. It is a QP (no cones beyond the nonnegative orthant). The pattern is built once;
-``build`` only writes values. With ``identity_e`` (exact FOH, E = I) the pattern holds E's
-diagonal only.
+w = w_bar + Dw dw, s = s_bar + Ds ds. The rows are declared once as blocks (``foh_rows``), the
+objective in ``foh_cost``. It is a QP (no cones beyond the nonnegative orthant). The pattern is
+built once; ``build`` only writes values. With ``identity_e`` (exact FOH, E = I) the pattern
+holds E's diagonal only.
 """
 
 from __future__ import annotations
@@ -30,8 +29,8 @@ _INDEXED_STATES = ("altitude_m", "longitude_deg", "latitude_deg", "velocity_m_s"
 
 @dataclass(frozen=True)
 class AlphaBounds:
-    """An angle-of-attack state's place and limits (radians; the rate per nondimensional
-    time, None: unbounded)."""
+    """An alpha state's place and limits in its own units (radians of angle of attack, or a
+    polar's normalized lift; the rate per nondimensional time, None: unbounded)."""
 
     index: int
     low: float
@@ -43,7 +42,9 @@ class FohSubproblem:
     """Builds Problem 2 of paper 002 as a ``ConeProblem`` with a pattern fixed at construction.
 
     ``layout`` names the states of z (any model carrying altitude, longitude, latitude, speed and
-    bank); ``state_scale`` holds one scale per state.
+    bank); ``state_scale`` holds one scale per state. ``controls``: rates per node (2 with an
+    alpha state, the bank's first); ``initial_states``: the states fixed at the first node
+    (default the first ``n_initial``); ``alpha``: the alpha state's range and rate rows.
     """
 
     def __init__(

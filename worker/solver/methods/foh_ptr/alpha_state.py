@@ -16,9 +16,15 @@ import numpy as np
 
 from worker.solver.alpha_schedules import ConstantAlpha
 from worker.solver.problem import EntryProblem
-from worker.solver.trajectory import held_quadratic
-from worker.solver.transcription.foh_model import lift_state_range
-from worker.solver.transcription.time_grid import Reference
+from worker.solver.trajectory import OptimizedTrajectory, held_quadratic
+from worker.solver.transcription.foh_model import FohModel, lift_state_range
+from worker.solver.transcription.foh_subproblem import AlphaBounds
+from worker.solver.transcription.time_grid import (
+    InitialGuessError,
+    Reference,
+    guess_reference,
+    initial_reference,
+)
 
 Array = np.ndarray
 
@@ -59,6 +65,51 @@ def with_alpha(ref: Reference, alpha: Array | float) -> Reference:
     rates = np.zeros((k, 2))
     rates[:, 0] = ref.w
     return Reference(z=np.column_stack([ref.z, column]), w=rates, s=ref.s, bank_deg=ref.bank_deg)
+
+
+def held_start(
+    problem: EntryProblem, unit: float, nodes: int, start_bank_deg: float | None
+) -> Reference | InitialGuessError:
+    """The start with an alpha state: the caller's guess (its alpha where it gives one) or the
+    bank-state start, each flown at the held alpha (``held_alpha``), the alpha column appended;
+    or why there is none."""
+    alpha = held_alpha(problem, unit)
+    held = held_alpha_problem(problem, alpha, unit)
+    try:
+        if problem.guess is not None:
+            ref = guess_reference(held, nodes)
+            given = problem.guess.alpha_on_times(np.concatenate([[0.0], np.cumsum(ref.s)]))
+            return with_alpha(ref, given if given is not None else alpha)
+        return with_alpha(initial_reference(held, nodes, start_bank_deg), alpha)
+    except InitialGuessError as exc:
+        return exc
+
+
+def alpha_bounds(problem: EntryProblem, index: int | None) -> AlphaBounds | None:
+    """An alpha state's index, range and rate bound (an optimized angle of attack's, or a
+    polar's normalized lift without a rate bound), else None."""
+    bounds = lift_state_range(problem)
+    if index is None or bounds is None:
+        return None
+    rate = problem.alpha_rate_max if problem.lift_range is None else None
+    return AlphaBounds(index, bounds[0], bounds[1], rate)
+
+
+def held_trajectory(t: Array, z: Array, w: Array, model: FohModel) -> OptimizedTrajectory:
+    """The nodes (K, 8) at times ``t`` with both attitude states held by their rates ``w``
+    (K, 2) between them, as the verification flies them."""
+    sigma, alpha = model.bank, model.alpha
+    assert alpha is not None
+    return OptimizedTrajectory(
+        "time",
+        t,
+        z[:, :6].copy(),
+        t,
+        z[:, sigma].copy(),
+        alpha_deg=z[:, alpha] * model.unit,
+        bank_rate=w[:, 0].copy(),
+        attitude=HeldAttitude(t, z[:, sigma].copy(), z[:, alpha].copy(), w.copy(), model.unit),
+    )
 
 
 @dataclasses.dataclass(frozen=True)

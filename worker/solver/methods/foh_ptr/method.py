@@ -27,10 +27,11 @@ from worker.solver import side_thread
 from worker.solver.conic import ConeProblem, ConicSolution
 from worker.solver.methods.base import MethodResult, RunHooks, run_method, run_starts
 from worker.solver.methods.foh_ptr.alpha_state import (
-    HeldAttitude,
+    alpha_bounds,
     held_alpha,
     held_alpha_problem,
-    with_alpha,
+    held_start,
+    held_trajectory,
 )
 from worker.solver.methods.foh_ptr.linearizer import Linearizer, defect, finite
 from worker.solver.methods.foh_ptr.records import iteration_record
@@ -41,8 +42,8 @@ from worker.solver.scp import loop as scp
 from worker.solver.scp.trust import DefectTrustWeight
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.foh_data import GridLimits, SubproblemData
-from worker.solver.transcription.foh_model import foh_model, lift_state_range
-from worker.solver.transcription.foh_subproblem import AlphaBounds, FohSubproblem
+from worker.solver.transcription.foh_model import foh_model
+from worker.solver.transcription.foh_subproblem import FohSubproblem
 from worker.solver.transcription.terminal import terminal_rows
 from worker.solver.transcription.time_grid import (
     InitialGuessError,
@@ -158,7 +159,7 @@ class FohPtr:
             layout=layout,
             controls=self.model.controls,
             initial_states=lin.initial_states,
-            alpha=_alpha_bounds(problem, self.model.alpha),
+            alpha=alpha_bounds(problem, self.model.alpha),
         )
         lin.difference_steps = DIFFERENCE_STEP * self.sub.block_scale
         lin.blocks = self.sub.curvature_layout
@@ -199,25 +200,16 @@ class FohPtr:
 
     def _first_reference(self) -> Reference | InitialGuessError:
         """The initial reference (``start``), or why there is none; made at construction
-        because a free final time's grid bounds scale with its flight time. With an optimized
-        angle of attack, the bank-state reference flown at a held one (``alpha_state``)."""
-        problem, nodes = self.problem, self.options.nodes
-        alpha = None
-        if self.model.alpha is not None:
-            alpha = held_alpha(problem, self.model.unit)
-            problem = held_alpha_problem(problem, alpha, self.model.unit)
+        because a free final time's grid bounds scale with its flight time."""
+        model, nodes = self.model, self.options.nodes
+        if model.alpha is not None:  # the bank-state start flown at a held alpha
+            return held_start(self.problem, model.unit, nodes, self.start_bank_deg)
         try:
             if self.problem.guess is not None:
-                ref = guess_reference(problem, nodes)
-                if alpha is not None:
-                    t = np.concatenate([[0.0], np.cumsum(ref.s)])
-                    given = self.problem.guess.alpha_on_times(t)
-                    return with_alpha(ref, given if given is not None else alpha)
-                return ref
-            ref = initial_reference(problem, nodes, self.start_bank_deg)
+                return guess_reference(self.problem, nodes)
+            return initial_reference(self.problem, nodes, self.start_bank_deg)
         except InitialGuessError as exc:
             return exc
-        return ref if alpha is None else with_alpha(ref, alpha)
 
     def tighten(self) -> bool:
         """A heavier trust weight after the conic solver failed on the subproblem (the driver
@@ -347,21 +339,9 @@ class FohPtr:
         """The nodes as a time-grid trajectory, with the FOH bank rate for exact bank
         propagation."""
         t = np.concatenate([[0.0], np.cumsum(reference.s)])
-        sigma, alpha = self.model.bank, self.model.alpha
-        if alpha is not None:  # both attitude states held as the subproblem holds them
-            z, w = reference.z, reference.w
-            return OptimizedTrajectory(
-                "time",
-                t,
-                z[:, :6].copy(),
-                t,
-                z[:, sigma].copy(),
-                alpha_deg=z[:, alpha] * self.model.unit,
-                bank_rate=w[:, 0].copy(),
-                attitude=HeldAttitude(
-                    t, z[:, sigma].copy(), z[:, alpha].copy(), w.copy(), self.model.unit
-                ),
-            )
+        if self.model.alpha is not None:  # both attitude states held as the subproblem holds
+            return held_trajectory(t, reference.z, reference.w, self.model)
+        sigma = self.model.bank
         return OptimizedTrajectory(
             "time",
             t,
@@ -374,16 +354,6 @@ class FohPtr:
     def objective_terms(self, outcome: scp.ScpOutcome[FohIterate]) -> dict[str, float]:
         """The terms on the last accepted reference."""
         return dict(outcome.reference.values) if outcome.reference is not None else {}
-
-
-def _alpha_bounds(problem: EntryProblem, index: int | None) -> AlphaBounds | None:
-    """An alpha state's index, range and rate bound (an optimized angle of attack's, or a
-    polar's normalized lift without a rate bound), else None."""
-    bounds = lift_state_range(problem)
-    if index is None or bounds is None:
-        return None
-    rate = problem.alpha_rate_max if problem.lift_range is None else None
-    return AlphaBounds(index, bounds[0], bounds[1], rate)
 
 
 def run(problem: EntryProblem, options: FohPtrOptions, **hooks: Unpack[RunHooks]) -> MethodResult:
