@@ -70,15 +70,16 @@ def with_alpha(ref: Reference, alpha: Array | float) -> Reference:
 def held_start(
     problem: EntryProblem, unit: float, nodes: int, start_bank_deg: float | None
 ) -> Reference | InitialGuessError:
-    """The start with an alpha state: the caller's guess (its alpha where it gives one) or the
-    bank-state start, each flown at the held alpha (``held_alpha``), the alpha column appended;
-    or why there is none."""
+    """The start with an alpha state: the caller's guess (its angle of attack where it gives
+    one; a polar's normalized lift starts held) or the bank-state start, each flown at the held
+    alpha (``held_alpha``), the alpha column appended; or why there is none."""
     alpha = held_alpha(problem, unit)
     held = held_alpha_problem(problem, alpha, unit)
     try:
         if problem.guess is not None:
             ref = guess_reference(held, nodes)
-            given = problem.guess.alpha_on_times(np.concatenate([[0.0], np.cumsum(ref.s)]))
+            times = np.concatenate([[0.0], np.cumsum(ref.s)])
+            given = problem.guess.alpha_on_times(times) if problem.lift_range is None else None
             return with_alpha(ref, given if given is not None else alpha)
         return with_alpha(initial_reference(held, nodes, start_bank_deg), alpha)
     except InitialGuessError as exc:
