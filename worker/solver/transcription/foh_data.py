@@ -95,6 +95,7 @@ class SubproblemData:
     inner: InnerRows | None = None
     path_ga: Array | None = None  # (K, m) partials in an angle-of-attack state, per radian
     grad_w: Array | None = None  # like w: the objective's gradient in the rates, when any
+    heat_load: float | None = None  # J/m^2 over the FOH substeps, where the objective takes it
 
 
 @dataclass

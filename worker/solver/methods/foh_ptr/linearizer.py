@@ -73,7 +73,7 @@ class Linearizer:
         )
         self.inner_exact = options.intersample_smooth_max == "exact"  # value at the worst sample
         self.inner_ratio = np.zeros(len(self.limits))
-        alpha_state = self.model.alpha is not None  # numpy rows, first-order steps
+        alpha_state = self.model.alpha is not None  # the compiled rows know no alpha state
         self.path_parameters = None if alpha_state else limit_parameters(problem, self.limits)
         self.second_order = bool(options.second_order)  # the schema allows it with exact_foh only
         self.difference_steps: Array | None = None  # set once the subproblem's scales are known
@@ -102,8 +102,7 @@ class Linearizer:
         if a is None:
             return path_rows_at(p, r, v, self.path_parameters)
         alpha_deg = x[..., a].ravel() * self.model.unit
-        rows = log_path_rows(p, r, v, p.forces.terms(r, v, alpha_deg), alpha_state=True)
-        return rows
+        return log_path_rows(p, r, v, p.forces.terms(r, v, alpha_deg), alpha_state=True)
 
     def curvature(self, z: Array, w: Array, s: Array, multipliers: Array | None) -> Array | None:
         """The P entries of the convexified Lagrangian curvature of the interval maps about the
@@ -187,8 +186,13 @@ class Linearizer:
             rows = self.rows_at(z)
         if self.objective is None:
             self.objective = TimeObjective(p, self.scale, z, s, self.model.alpha, self.model.unit)
-        sampled = mp.samples if self.sampled_heat else None
-        grad_z, grad_s, grad_w = self.objective.gradients(z, s, samples=sampled, w_shape=w.shape)
+        heat_load, heat_block = None, None
+        if self.sampled_heat:  # once per reference: its value and its gradient
+            assert mp.samples is not None
+            heat_load, heat_block = self.objective.sampled_heat(mp.samples, s)
+        grad_z, grad_s, grad_w = self.objective.gradients(
+            z, s, heat_block=heat_block, w_shape=w.shape
+        )
         quad = np.zeros((k, nz))
         quad_c = np.zeros((k, nz))
         if rows.names and o.weight_nonlinear > 0:
@@ -243,6 +247,7 @@ class Linearizer:
             inner=inner,
             path_ga=None if rows.g_a is None else rows.g_a * self.model.unit,
             grad_w=grad_w,
+            heat_load=heat_load,
         )
         return data, rows.ratio
 

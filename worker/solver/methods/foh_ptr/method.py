@@ -283,8 +283,7 @@ class FohPtr:
         report = self.lin.report()
         candidate = self.lin.data(new.z, new.w, new.s)  # the next linearization judges this step
         assert self.lin.objective is not None
-        sampled = candidate[0].maps.samples if self.lin.sampled_heat else None
-        values = self.lin.objective.values(new.z, new.s, samples=sampled)
+        values = self.lin.objective.values(new.z, new.s, heat_load=candidate[0].heat_load)
         step = np.concatenate([new.dz.ravel(), new.dw.ravel()])
         record, small, virtual = iteration_record(
             self, iteration, reference, new, data, ratio, report, values, solution, lin_s, step

@@ -143,13 +143,13 @@ class TimeObjective:
         z: Array,
         s: Array,
         ft: ForceTerms | None = None,
-        samples: IntervalSamples | None = None,
+        heat_block: Array | None = None,
         w_shape: tuple[int, ...] | None = None,
     ) -> tuple[Array, Array, Array | None]:
         """d J / d z (K, nz), d J / d s (N,) and d J / d w (``w_shape``, or None when J does
         not depend on w) of the normalized objective at the reference (``ft``: the force terms
-        at the nodes, evaluated here when a term needs them; with ``samples`` the heat load is
-        integrated over them, ``sampled_heat``)."""
+        at the nodes, evaluated here when a term needs them; ``heat_block``: the gradient of
+        the heat load over the substeps, ``sampled_heat``'s, which then replaces the nodes')."""
         grad_z = np.zeros(z.shape)
         grad_s = np.zeros(s.size)
         grad_w = None
@@ -159,10 +159,9 @@ class TimeObjective:
                 grad_z[-1, idx] += self.pull[term.name] * sign / self.scale[idx]
             elif term.name == "min_time":
                 grad_s += self.pull[term.name] * self.problem.scales.time_s / self.time_unit
-            elif samples is not None:
+            elif heat_block is not None:
                 c = self.pull[term.name] * self.problem.scales.time_s / self.heat_unit
-                _, block = self.sampled_heat(samples, s)
-                block *= c  # d(load / time unit): per unit of the normalized load
+                block = heat_block * c  # d(load / time unit): per unit of the normalized load
                 nz = z.shape[1]
                 m = (block.shape[1] - nz - 1) // 2
                 grad_z[:-1] += block[:, :nz]
@@ -189,10 +188,10 @@ class TimeObjective:
         z: Array,
         s: Array,
         ft: ForceTerms | None = None,
-        samples: IntervalSamples | None = None,
+        heat_load: float | None = None,
     ) -> dict[str, float]:
         """Each term's value in SI units (m/s, deg, J/m^2) on nodes ``z`` with lengths ``s``
-        (the heat load over ``samples`` when given, ``sampled_heat``)."""
+        (``heat_load``: the load over the substeps, ``sampled_heat``'s, when it was taken)."""
         out: dict[str, float] = {}
         for term in self.problem.objective:
             if term.name == "max_terminal_velocity":
@@ -201,8 +200,8 @@ class TimeObjective:
                 out[term.name] = math.degrees(float(z[-1, TERMINAL_TERMS[term.name][0]]))
             elif term.name == "min_time":
                 out[term.name] = float(np.sum(s)) * self.problem.scales.time_s
-            elif samples is not None:
-                out[term.name] = self.sampled_heat(samples, s)[0]
+            elif heat_load is not None:
+                out[term.name] = heat_load
             else:
                 forces = ft if ft is not None else self._terms(z)
                 out[term.name] = self._heat_load(z, s, forces)
