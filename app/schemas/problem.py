@@ -11,7 +11,14 @@ from app.schemas.constraints import ControlLimits, PathConstraints
 from app.schemas.examples import RLV_MIN_HEAT_LOAD
 from app.schemas.guess import InitialGuess
 from app.schemas.limits import MAX_NO_FLY_ZONES, MAX_PHASES, MAX_WAYPOINTS
-from app.schemas.methods import MethodSpec, default_method_options
+from app.schemas.methods import (
+    ChebScvxOptions,
+    FohPtrOptions,
+    MethodSpec,
+    default_method_options,
+)
+from app.schemas.methods.cheb_scvx import default_resolution as cheb_default_resolution
+from app.schemas.methods.foh_ptr import default_nodes as foh_default_nodes
 from app.schemas.objective import ObjectiveInput
 from app.schemas.phases import Phase
 from app.schemas.planet import Planet
@@ -108,7 +115,37 @@ class ProblemDocument(StrictModel):
             *self._propulsion_problems(),
         ]
         raise_problems("ProblemDocument", problems)
+        self._class_default_nodes()
         return self
+
+    def class_resolution(self, name: str) -> dict[str, int]:
+        """Method ``name``'s resolution for this problem's class when its document gives none:
+        foh-ptr's nodes, cheb-scvx's nodes and intervals (their fields describe the rules);
+        empty for the other methods."""
+        heat_load = "min_heat_load" in self.objective.names()
+        if name == "cheb-scvx":
+            nodes, intervals = cheb_default_resolution(heat_load)
+            return {"nodes": nodes, "intervals": intervals}
+        if name != "foh-ptr":
+            return {}
+        attack = self.vehicle.angle_of_attack
+        held = self.vehicle.aerodynamics.model == "parabolic_polar" or (
+            attack is not None and attack.mode == "optimized"
+        )
+        free = self.final_time.kind == "free"
+        return {"nodes": foh_default_nodes(free, heat_load, held)}
+
+    def _class_default_nodes(self) -> None:
+        """The class's resolution (``class_resolution``) where the document names foh-ptr or
+        cheb-scvx and gives neither nodes nor intervals, written into the document so that it
+        shows what was solved."""
+        method = self.method
+        if not isinstance(method, FohPtrOptions | ChebScvxOptions):
+            return
+        if {"nodes", "intervals"} & method.model_fields_set:
+            return
+        for key, value in self.class_resolution(method.name).items():
+            setattr(method, key, value)
 
     def _terminal_altitude_problems(self) -> list[FieldProblem]:
         spec = self.terminal.altitude_m

@@ -10,6 +10,18 @@ from pydantic import Field, model_validator
 from app.schemas.base import FieldProblem, raise_problems
 from app.schemas.methods.common import BoundedOptions, ScpRunOptions
 
+PAPER_RESOLUTION = (201, 20)
+"""CGL points and intervals when a document gives neither: paper 001's flight resolution."""
+HEAT_LOAD_RESOLUTION = (401, 40)
+"""CGL points and intervals when a document gives neither and minimizes a heat load: its bank
+pulses need intervals half as long (docs/methods/cheb-scvx.md, "User problems")."""
+
+
+def default_resolution(heat_load: bool) -> tuple[int, int]:
+    """cheb-scvx's (nodes, intervals) for a problem of this class when its document gives
+    neither."""
+    return HEAT_LOAD_RESOLUTION if heat_load else PAPER_RESOLUTION
+
 
 class ChebStopTolerance(BoundedOptions):
     """Convergence test (paper 001 eq. 43): no point moves more than these between iterations,
@@ -51,16 +63,19 @@ class ChebScvxOptions(ScpRunOptions):
 
     name: Literal["cheb-scvx"] = Field("cheb-scvx", description="Method name.")
     nodes: int = Field(
-        201,
+        PAPER_RESOLUTION[0],
         ge=3,
         le=1000,
-        description="CGL points of the flight (the intervals' degrees sum to nodes - 1); with "
+        description="CGL points of the flight (the intervals' degrees sum to nodes - 1); when a "
+        f"document gives neither nodes nor intervals, {PAPER_RESOLUTION[0]} on "
+        f"{PAPER_RESOLUTION[1]} intervals (paper 001's), {HEAT_LOAD_RESOLUTION[0]} on "
+        f"{HEAT_LOAD_RESOLUTION[1]} for a heat-load objective; with "
         "waypoints, shared among the legs in proportion to their lengths. Each interval has "
         "degree 2 at least, so at least 2 x intervals + 1 (41 for the default 20 intervals; 3 "
         "for one interval, the fewest the method runs with).",
     )
     intervals: int = Field(
-        20,
+        PAPER_RESOLUTION[1],
         ge=1,
         le=999,
         description="CGL intervals of the flight, shared among the legs like the points; the "
@@ -68,7 +83,7 @@ class ChebScvxOptions(ScpRunOptions):
         "interval (paper 001's own case needs some 200 points to fly as planned: its skipping "
         "flight amplifies any error of the nodes' interpolation).",
     )
-    max_iterations: int = Field(60, ge=1, le=500, description="Most SCP iterations, 1..500.")
+    max_iterations: int = Field(150, ge=1, le=500, description="Most SCP iterations, 1..500.")
     final_time_guess_s: float | None = Field(
         None,
         gt=0,

@@ -12,6 +12,23 @@ from app.schemas.methods.common import BoundedOptions, ConicBackendName, ScpRunO
 
 MIN_NODES = 9
 """The fewest nodes foh-ptr runs with (docs/problem-contract.md, "Method": measured)."""
+BANK_ONLY_NODES = 40
+"""Nodes when a document gives none, on a fixed final time with the bank the only control:
+paper 002's."""
+FINER_NODES = 80
+"""Nodes when a document gives none, with a free final time or a held attitude state (an
+optimized angle of attack, a polar's normalized lift): its flights need finer intervals
+(docs/methods/foh-ptr.md, "Free final time", "An optimized angle of attack")."""
+FREE_TIME_HEAT_LOAD_NODES = 120
+"""Nodes when a document gives none, with a free final time and a heat-load objective: its
+bank pulses need finer intervals still (docs/methods/foh-ptr.md, "Free final time")."""
+
+
+def default_nodes(free_final_time: bool, heat_load: bool, held_attitude: bool) -> int:
+    """foh-ptr's nodes for a problem of this class when its document gives none."""
+    if free_final_time:
+        return FREE_TIME_HEAT_LOAD_NODES if heat_load else FINER_NODES
+    return FINER_NODES if held_attitude else BANK_ONLY_NODES
 
 
 class FohStopTolerance(BoundedOptions):
@@ -65,10 +82,14 @@ class FohPtrOptions(ScpRunOptions):
         '"clarabel" directly, or "cvxpy" (Clarabel through cvxpy).',
     )
     nodes: int = Field(
-        40,
+        BANK_ONLY_NODES,
         ge=MIN_NODES,
         le=MAX_NODES,
-        description=f"Temporal nodes (N + 1 for N intervals), {MIN_NODES}..{MAX_NODES}. "
+        description=f"Temporal nodes (N + 1 for N intervals), {MIN_NODES}..{MAX_NODES}; when "
+        f"a document gives none, by its class: {BANK_ONLY_NODES} (paper 002's) on a fixed final "
+        f"time with the bank alone, {FINER_NODES} with a free final time or an optimized angle "
+        f"of attack or a polar's lift, {FREE_TIME_HEAT_LOAD_NODES} with a free final time and a "
+        "heat-load objective. "
         f"{MIN_NODES} is the fewest with which the method starts on its built-in flights: "
         "with fewer, intervals of more than 200 s of a 1600 s flight, its constant-bank guess "
         "(two RK4 steps per interval) blows up and the first subproblem breaks down.",

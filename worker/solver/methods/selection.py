@@ -65,35 +65,15 @@ PREFERENCE: tuple[Preference, ...] = (
 )
 """Every method, in the order auto tries those that accept a document."""
 
-FREE_TIME_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 80, "max_iterations": 100}}
-"""Auto's options of a method on a free final time, before the caller's ``nodes`` and
-overrides: foh-ptr's 40 nodes are paper 002's, on its fixed-time flights; a free-time flight
-needs finer intervals and up to 100 iterations a start (its default; paper 002's 30 did not
-converge) (docs/methods/foh-ptr.md, "Free final time")."""
-FREE_TIME_HEAT_LOAD_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 120}}
-"""On a free final time with a heat-load objective, on top of ``FREE_TIME_OPTIONS``: the
-minimum heat load skips, and its bank pulses need finer intervals still (docs/methods/foh-ptr.md,
-"Free final time"); terminal objectives converge worse at 120 nodes, so they keep 80."""
-HELD_ATTITUDE_OPTIONS: dict[str, dict[str, Any]] = {"foh-ptr": {"nodes": 80}}
-"""Auto's options of a method that holds a second attitude state (an optimized angle of
-attack, a polar's normalized lift) on a fixed final time: foh-ptr's two held rates need finer
-intervals than the bank alone (docs/methods/foh-ptr.md, "An optimized angle of attack")."""
-
 
 def _auto_defaults(name: str, doc: ProblemDocument) -> dict[str, Any] | None:
-    """Auto's options of method ``name`` for ``doc`` (the free-time ones on a free final time,
-    finer for a heat load; else the held-attitude ones where the vehicle has a second attitude
-    state), or None."""
-    if doc.final_time.kind == "free":
-        options = FREE_TIME_OPTIONS.get(name)
-        if options is not None and "min_heat_load" in doc.objective.names():
-            options = {**options, **FREE_TIME_HEAT_LOAD_OPTIONS.get(name, {})}
-        return options
-    attack = doc.vehicle.angle_of_attack
-    held = doc.vehicle.aerodynamics.model == "parabolic_polar" or (
-        attack is not None and attack.mode == "optimized"
-    )
-    return HELD_ATTITUDE_OPTIONS.get(name) if held else None
+    """Auto's options of method ``name`` for ``doc``: the resolution of the problem's class, as
+    the method's own defaults read it (``ProblemDocument.class_resolution``: auto hands every
+    method explicit options, so the class is read here too); None for the rest, and for
+    cheb-scvx when auto's own nodes are given (they run on the paper's intervals)."""
+    if name == "cheb-scvx" and isinstance(doc.method, AutoOptions) and doc.method.nodes is not None:
+        return None
+    return doc.class_resolution(name) or None
 
 
 @dataclass(frozen=True)

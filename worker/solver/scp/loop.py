@@ -73,7 +73,9 @@ class Judgement(Generic[Ref, Lin]):
     settled objective). ``virtual_control``: the step's virtual-control norm. ``reference``
     replaces the candidate when the method changed it on acceptance (a new grid);
     ``linearization`` is the new reference's linearization when the judgement computed it
-    (None: the driver linearizes at the next iteration).
+    (None: the driver linearizes at the next iteration). ``stalled``: why an accepted step ends
+    the run unconverged (an infeasibility that no longer falls): failed, code ``infeasible``,
+    with the node violations of the last reference as when the budget runs out.
     """
 
     accepted: bool
@@ -81,6 +83,7 @@ class Judgement(Generic[Ref, Lin]):
     virtual_control: float = 0.0
     reference: Ref | None = None
     linearization: Lin | None = None
+    stalled: str | None = None
 
 
 class ScpMethod(Protocol[Ref, Lin]):
@@ -284,6 +287,8 @@ def run_scp(
             on_iteration(proposal.record)
         if verdict.accepted and verdict.small and verdict.virtual_control <= VIRTUAL_CONTROL_TOL:
             return outcome("converged")
+        if verdict.accepted and verdict.stalled is not None:  # judged as a spent budget
+            return outcome("max_iterations", "infeasible", verdict.stalled)
     return outcome(
         "max_iterations",
         "max_iterations",

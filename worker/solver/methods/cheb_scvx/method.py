@@ -82,6 +82,15 @@ WAYPOINT_MARGIN = 0.95
 the tangent-plane metric on the sphere get the rest."""
 STATIONARY = 1.0e-9
 """A predicted decrease below this share of the penalized cost: nothing left to gain."""
+MERIT_MARGIN = 3.0
+"""The merit's penalty weight against the subproblem's largest multiplier of a relaxed row: an
+exact L1 penalty needs a weight above the multipliers (Nocedal & Wright, Numerical
+Optimization, thm. 17.3); the margin keeps it exact between iterations."""
+MERIT_FLOOR = 1.0e-3
+"""The merit's smallest penalty weight, as a share of the subproblem's weight."""
+STALL_ITERATIONS, STALL_SHARE = 10, 1.0e-4
+"""An infeasibility above ``FEASIBLE`` whose sum stayed within this share of itself over this
+many accepted steps has stalled: the run ends infeasible instead of spending its budget."""
 
 
 @dataclass
@@ -134,6 +143,10 @@ class ChebScvx:
         self.q: Array | None = None
         self.pending: _Pending | None = None
         self.ref_cost: float | None = None
+        self.merit_weight = options.weight_virtual_control
+        """The L1 penalty weight of the ratio test's merit (``merit_weight_of``)."""
+        self.infeasibility_trail: list[float] = []
+        """The sum of the scaled violations of each accepted candidate, in order (``stalled``)."""
         self._order = self._collocation_order()
         self._conic: scp.ConicCall | None = None
         self._limit = 0.0
@@ -320,9 +333,13 @@ class ChebScvx:
         """The candidate, its penalized cost and the record."""
         assert solution.x is not None and self.cols is not None and self.q is not None
         x = solution.x
+        assert self._problem is not None
+        self.merit_weight = merit_weight_of(
+            solution, self._problem, self.cols, self.setup.weight, len(self.setup.terminal)
+        )
+        self.ref_cost = self.penalized(reference, linearization)
         new, lin, cost = self._candidate(reference, x)
-        assert self.ref_cost is not None
-        predicted = self.objective(reference, linearization) + float(self.q @ x)
+        predicted = self.model_cost(reference, linearization, x)
         corrected = False
         if self.ref_cost - cost < RATIO_SHRINK * (self.ref_cost - predicted):
             x2 = self._second_order(reference, x, lin)
@@ -335,6 +352,7 @@ class ChebScvx:
         change = np.max(np.abs(dy), axis=0)
         small = bool(np.all(change <= self.tol) and np.all(np.abs(dT) <= self.tol_t))
         infeasibility = self.infeasibility(new, lin)
+        violation = float(np.sum(self.violations(new, lin)))
         small = small and infeasibility <= FEASIBLE
         u = new.u
         gap = float(np.max(u[:, 2] - u[:, 0] ** 2 - u[:, 1] ** 2))
@@ -358,6 +376,7 @@ class ChebScvx:
                 "path_rows": int(np.count_nonzero(self.path_set)),
                 "bank_rate_points": int(np.count_nonzero(self.rate_set)),
                 "infeasibility": infeasibility,
+                "violation_sum": violation,
                 "leg_durations_s": [
                     float(np.sum(new.T[self.segments.leg_intervals(leg)])) * sc.time_s
                     for leg in range(self.segments.leg_count)
@@ -371,6 +390,17 @@ class ChebScvx:
         )
         self.pending = _Pending(lin, cost, predicted, small, virtual)
         return scp.Proposal(new, record)
+
+    def model_cost(self, reference: ChebIterate, lin: ChebLinearization, x: Array) -> float:
+        """The merit of step ``x`` as the subproblem models it: the linearized objective and the
+        merit's weight on the virtual control and slacks the step leaves."""
+        assert self.cols is not None and self.q is not None
+        elastic = float(np.sum(x[self.cols.nu : self.cols.n]))
+        return (
+            self.objective(reference, lin)
+            + float(self.q @ x)
+            - (self.setup.weight - self.merit_weight) * elastic
+        )
 
     def _candidate(
         self, reference: ChebIterate, x: Array
@@ -405,8 +435,38 @@ class ChebScvx:
         elif ratio > RATIO_GROW:
             self.radius = min(self.radius * 2.0, RADIUS_MAX)
         record.extra["accepted"] = True
+        stalled = self.stalled(
+            float(record.extra["infeasibility"]), float(record.extra["violation_sum"])
+        )
+        if stalled is not None:
+            largest = self.largest_violation(proposal.reference, pend.lin)
+            stalled = f"{stalled}, the largest at {largest}"
+            record.extra["infeasibility_stalled"] = True
         return scp.Judgement(
-            True, small=pend.small, virtual_control=pend.virtual, linearization=pend.lin
+            True,
+            small=pend.small,
+            virtual_control=pend.virtual,
+            linearization=pend.lin,
+            stalled=stalled,
+        )
+
+    def stalled(self, infeasibility: float, violation: float) -> str | None:
+        """Why the run should stop when the sum of the scaled defects and excesses stayed within
+        ``STALL_SHARE`` of itself over the last ``STALL_ITERATIONS`` accepted steps while the
+        largest of them stays above ``FEASIBLE`` (a stationary point of the penalized cost that
+        the constraints do not meet: more iterations only creep the objective); None while the
+        sum still moves (its largest term may stall while the others fall)."""
+        trail = self.infeasibility_trail
+        trail.append(violation)
+        if len(trail) <= STALL_ITERATIONS or infeasibility <= FEASIBLE:
+            return None
+        window = trail[-1 - STALL_ITERATIONS :]
+        if max(window) - min(window) > STALL_SHARE * violation:
+            return None
+        return (
+            f"stopped at accepted step {len(trail)}: the scaled defects and excesses (sum "
+            f"{violation:.4g}, largest {infeasibility:.4g}) stayed within {STALL_SHARE:g} of "
+            f"their sum over the last {STALL_ITERATIONS} accepted steps"
         )
 
     # -- costs ------------------------------------------------------------------------
@@ -437,26 +497,44 @@ class ChebScvx:
 
     def violations(self, it: ChebIterate, lin: ChebLinearization) -> Array:
         """Every scaled defect magnitude and excess the penalty counts."""
-        parts = [np.abs(lin.defects).ravel() / np.tile(self.units.y, lin.defects.shape[0])]
+        return np.concatenate([values for _, values in self.labelled_violations(it, lin)])
+
+    def labelled_violations(
+        self, it: ChebIterate, lin: ChebLinearization
+    ) -> list[tuple[str, Array]]:
+        """The scaled defects and excesses by what they violate (the dynamics, a path limit,
+        the bank rate, a zone, a waypoint, a terminal condition), in ``violations``' order."""
+        parts = [
+            (
+                "the dynamics (collocation defects)",
+                np.abs(lin.defects).ravel() / np.tile(self.units.y, lin.defects.shape[0]),
+            )
+        ]
         if self.path_set.any():
-            parts.append(np.maximum(lin.path.g[self.path_set], 0.0) / PATH_UNIT)
+            parts.append(("a path limit", np.maximum(lin.path.g[self.path_set], 0.0) / PATH_UNIT))
         if self.rate_set.any():
             assert self.problem.bank_rate_max is not None
             share = np.abs(lin.bank_rate[self.rate_set]) / self.problem.bank_rate_max - 1.0
-            parts.append(np.maximum(share, 0.0) / PATH_UNIT)
-        for zone, zl in zip(self.problem.no_fly_zones, lin.zones, strict=True):
-            parts.append(np.maximum(zone.radius - zl.c, 0.0) / ZONE_UNIT)
-        for w in self.setup.waypoints:
+            parts.append(("the bank-rate limit", np.maximum(share, 0.0) / PATH_UNIT))
+        for k, (zone, zl) in enumerate(zip(self.problem.no_fly_zones, lin.zones, strict=True)):
+            parts.append((f"no-fly zone {k}", np.maximum(zone.radius - zl.c, 0.0) / ZONE_UNIT))
+        for k, w in enumerate(self.setup.waypoints):
             d = math.hypot(
                 it.y[w.point, PH] - w.latitude, w.lon_factor * (it.y[w.point, TH] - w.longitude)
             )
-            parts.append(np.array([max(d - w.radius, 0.0) / ZONE_UNIT]))
+            parts.append((f"waypoint {k}", np.array([max(d - w.radius, 0.0) / ZONE_UNIT])))
         last = it.y[-1]
+        names = dict(POINT_MASS.terminal_states())
         for t in self.setup.terminal:
             j = t.state
             excess = max(last[j] - t.hi, t.lo - last[j], 0.0) / self.units.y[j]
-            parts.append(np.array([excess]))
-        return np.concatenate(parts)
+            parts.append((f"the terminal {names.get(j, j)}", np.array([excess])))
+        return parts
+
+    def largest_violation(self, it: ChebIterate, lin: ChebLinearization) -> str:
+        """What the largest scaled defect or excess violates."""
+        parts = self.labelled_violations(it, lin)
+        return max(parts, key=lambda part: float(np.max(part[1], initial=0.0)))[0]
 
     def infeasibility(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """The largest scaled defect or excess."""
@@ -464,7 +542,7 @@ class ChebScvx:
 
     def penalized(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """Objective + weight x the L1 norm of the defects and excesses (the merit function)."""
-        return self.objective(it, lin) + self.setup.weight * float(np.sum(self.violations(it, lin)))
+        return self.objective(it, lin) + self.merit_weight * float(np.sum(self.violations(it, lin)))
 
     # -- results ----------------------------------------------------------------------
     def term_values(self, it: ChebIterate, lin: ChebLinearization) -> dict[str, float]:
@@ -511,6 +589,31 @@ class ChebScvx:
         if ref is None:
             return {}
         return self.term_values(ref, self.linearize(ref))
+
+
+def merit_weight_of(
+    solution: ConicSolution, problem: ConeProblem, cols: Columns, weight: float, terminal: int
+) -> float:
+    """The merit's penalty weight for a step: ``MERIT_MARGIN`` times the largest multiplier of
+    a row the subproblem relaxes, within [``MERIT_FLOOR`` x ``weight``, ``weight``]: of the
+    defect, path, bank-rate, zone and waypoint rows ``weight`` less the reduced cost of the
+    row's elastic column; of a terminal bound (its two rows, the last ``2 terminal`` of the
+    nonnegative block, share one slack) the difference of the two rows' multipliers, which is
+    the bound's own (their sum is not, and a fixed value's is large on the central path).
+    The subproblem's own weight keeps its virtual control off; a merit that weighs the
+    second-order defects of every step a thousand times the objective stalls the trust box at
+    steps whose defects cancel their predecessors', where the multipliers say they are worth
+    far less. ``weight`` when the solver reports no multipliers."""
+    if solution.y is None:
+        return weight
+    y, first = solution.y, problem.cones.n_zero
+    reduced = y[first : first + cols.n - cols.nu - terminal]
+    largest = float(np.max(weight - reduced, initial=0.0))
+    if terminal:
+        end = first + problem.cones.n_nonneg
+        pairs = y[end - 2 * terminal : end].reshape(terminal, 2)
+        largest = max(largest, float(np.max(np.abs(pairs[:, 0] - pairs[:, 1]))))
+    return min(weight, max(MERIT_MARGIN * largest, MERIT_FLOOR * weight))
 
 
 def lift_range(problem: EntryProblem) -> tuple[float, float]:
