@@ -70,6 +70,8 @@ class ClientFigures:
     """Every read's time, in order."""
     server_cpu: float = 0.0
     """CPU seconds the API process used per second of the window (its children apart)."""
+    window: tuple[float, float] = (0.0, 0.0)
+    """When the window began and ended (``time.perf_counter``)."""
 
 
 @dataclass
@@ -218,7 +220,8 @@ def other_client(
             if answer.status_code != 200:
                 raise RuntimeError(f"B's plot: {answer.status_code} {answer.text[:200]}")
     reader.join()
-    cpu = (cpu_seconds(server_pid) - cpu_start) / (time.perf_counter() - wall_start)
+    wall_end = time.perf_counter()
+    cpu = (cpu_seconds(server_pid) - cpu_start) / (wall_end - wall_start)
     first = None if span is None else span[1] - span[0]
     return ClientFigures(
         first,
@@ -229,6 +232,7 @@ def other_client(
         len(times),
         [round(1e3 * t, 2) for t in times],
         cpu,
+        (wall_start, wall_end),
     )
 
 
@@ -262,6 +266,7 @@ def isolation(
         "loaded": asdict(loaded),
         "a_answers": count.answers,
         "a_plots_while_b_waited": count.between(*loaded.plot_span),
+        "a_plots_in_loaded_window": count.between(*loaded.window),
     }
 
 

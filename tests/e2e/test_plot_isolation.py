@@ -3,15 +3,16 @@ client A asking for many plots at once on six connections, client B for its firs
 job's status meanwhile (the measurement of ``python -m bench.plot_isolation``).
 
 What it checks is the scheduling, not the machine's speed: how many of A's plots arrive while B
-waits for its first (an order of events), and the API process's own CPU time under A's renders
-against B's reads alone (CPU seconds, which other processes' load does not inflate). The wall
-times (B's first plot, its reads' p95) are printed by ``python -m bench.plot_isolation``.
+waits for its first (an order of events), and the API process's own CPU time per answer under
+A's load against B's reads alone (CPU seconds, which other processes' load does not inflate).
+The wall times (B's first plot, its reads' p95) are printed by ``python -m bench.plot_isolation``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -71,6 +72,20 @@ def test_another_clients_first_plot_and_reads_do_not_wait_for_one_clients_render
     # their own processes they leave the server's CPU to requests. The CPU time is the
     # measure, not the reads' wall time: another process's load moves wall times between the
     # two windows (B's first plot measured 3.5 x alone once with other work on the machine,
-    # its ordering above still exact); the wall figures are the bench's to report.
+    # its ordering above still exact); the wall figures are the bench's to report. The API's
+    # CPU is taken per answer it gave in the window: once A's plots are rendered A gets them
+    # from the store, up to ~150 answers a second of ~2 ms each, as B's reads cost (the CPU
+    # per second then reached 0.30-0.45 with no render in the process), where a render in the
+    # process costs tens of milliseconds an answer (measured: 1.8-1.9 ms an answer under A's
+    # 680-800 answers against 3.8 ms a read alone, at 0.47-0.50 CPU s/s against 0.07).
     if reads["server_cpu"] > 0:  # Linux: the API process itself does not render
-        assert loaded["server_cpu"] <= 2 * reads["server_cpu"] + 0.05, figures
+        alone_s = reads["server_cpu"] * _span(reads) / reads["reads"]
+        answers = loaded["reads"] + 1 + figures["a_plots_in_loaded_window"]
+        loaded_s = loaded["server_cpu"] * _span(loaded) / answers
+        assert loaded_s <= 2 * alone_s, (loaded_s, alone_s, figures)
+
+
+def _span(window: dict[str, Any]) -> float:
+    """The length of a client's window, s."""
+    start, end = window["window"]
+    return float(end - start)
