@@ -21,7 +21,7 @@ from worker.solver.methods.cheb_scvx.subproblem import Columns
 
 WEIGHT = 1000.0
 # columns: 2 states, then 2 virtual controls, then 2 slacks (the second a terminal bound's)
-COLS = Columns(y=0, u=2, t=2, nu=2, slack=4, n=6)
+COLS = Columns(y=0, u=2, t=2, nu=2, slack=4, n=6, terminal_rows=5)
 # rows: 1 equality, then the 4 elastic bounds, 1 other row, the terminal bound's 2 rows
 CONES = ConeSpec(n_zero=1, n_nonneg=7)
 

@@ -256,7 +256,6 @@ class ChebScvx:
         if self.problem.bank_rate_max is not None:
             near = (1.0 - self.options.path_margin) * self.problem.bank_rate_max
             self.rate_set |= np.abs(linearization.bank_rate) > near
-        self.ref_cost = self.penalized(reference, linearization)
         problem, self.cols = build(
             self.problem,
             self.segments,
@@ -336,7 +335,7 @@ class ChebScvx:
         assert self._problem is not None
         self.merit_weight = merit_weight_of(
             solution, self._problem, self.cols, self.setup.weight, len(self.setup.terminal)
-        )
+        )  # the ratio test's merit, so the reference's cost is taken here, not with the build
         self.ref_cost = self.penalized(reference, linearization)
         new, lin, cost = self._candidate(reference, x)
         predicted = self.model_cost(reference, linearization, x)
@@ -351,8 +350,9 @@ class ChebScvx:
         virtual = float(np.max(np.abs(x[self.cols.nu : self.cols.slack]), initial=0.0))
         change = np.max(np.abs(dy), axis=0)
         small = bool(np.all(change <= self.tol) and np.all(np.abs(dT) <= self.tol_t))
-        infeasibility = self.infeasibility(new, lin)
-        violation = float(np.sum(self.violations(new, lin)))
+        violations = self.violations(new, lin)
+        infeasibility = float(np.max(violations, initial=0.0))
+        violation = float(np.sum(violations))
         small = small and infeasibility <= FEASIBLE
         u = new.u
         gap = float(np.max(u[:, 2] - u[:, 0] ** 2 - u[:, 1] ** 2))
@@ -597,7 +597,7 @@ def merit_weight_of(
     """The merit's penalty weight for a step: ``MERIT_MARGIN`` times the largest multiplier of
     a row the subproblem relaxes, within [``MERIT_FLOOR`` x ``weight``, ``weight``]: of the
     defect, path, bank-rate, zone and waypoint rows ``weight`` less the reduced cost of the
-    row's elastic column; of a terminal bound (its two rows, the last ``2 terminal`` of the
+    row's elastic column; of a terminal bound (its two rows, from ``cols.terminal_rows`` of the
     nonnegative block, share one slack) the difference of the two rows' multipliers, which is
     the bound's own (their sum is not, and a fixed value's is large on the central path).
     The subproblem's own weight keeps its virtual control off; a merit that weighs the
@@ -610,8 +610,8 @@ def merit_weight_of(
     reduced = y[first : first + cols.n - cols.nu - terminal]
     largest = float(np.max(weight - reduced, initial=0.0))
     if terminal:
-        end = first + problem.cones.n_nonneg
-        pairs = y[end - 2 * terminal : end].reshape(terminal, 2)
+        start = first + cols.terminal_rows
+        pairs = y[start : start + 2 * terminal].reshape(terminal, 2)
         largest = max(largest, float(np.max(np.abs(pairs[:, 0] - pairs[:, 1]))))
     return min(weight, max(MERIT_MARGIN * largest, MERIT_FLOOR * weight))
 

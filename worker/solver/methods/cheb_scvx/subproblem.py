@@ -109,6 +109,9 @@ class Columns:
     path_points: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     path_limits: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     slack_names: list[str] = field(default_factory=list)
+    terminal_rows: int = 0
+    """The first of the terminal bounds' rows (two per bound, upper then lower) in the
+    nonnegative block: their multipliers weigh the merit (``method.merit_weight_of``)."""
 
 
 class _Rows:
@@ -336,6 +339,7 @@ def build(
         soc_dims.append(3)
         slack += 1
     # terminal bounds on the last point, relaxed: (y - hi)/unit <= s, (lo - y)/unit <= s
+    cols.terminal_rows = nonneg.m
     last = P - 1
     for t in setup.terminal:
         j = t.state
