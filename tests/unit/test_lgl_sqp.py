@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +19,16 @@ from worker.solver.api import solve_problem
 from worker.solver.conic import make_backend
 from worker.solver.global_search import SearchBudget
 from worker.solver.methods.lgl_sqp.guess import global_guess
-from worker.solver.methods.lgl_sqp.method import _burn_meshes, _on_mesh
+from worker.solver.methods.lgl_sqp.method import (
+    PATH_OVERSHOOT,
+    PATH_SAMPLES,
+    _burn_meshes,
+    _on_mesh,
+    _path_meshes,
+)
 from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
 from worker.solver.methods.lgl_sqp.sqp import SqpOutcome, SqpSettings, solve_sqp
+from worker.solver.models.powered import path_ratios
 from worker.solver.phase_search import Parameterization
 from worker.solver.phased_problem import PhasedProblem, build_phased_problem
 from worker.solver.transcription.lgl import LglMesh
@@ -121,6 +129,63 @@ def test_the_refinement_splits_the_burn_segments_and_carries_polynomials() -> No
         assert fine.duration(carried, p) == 0.5 + p
     assert _burn_meshes(problem, LglSqpOptions(refine_burns=False), coarse, z) is None
     assert _burn_meshes(problem, LglSqpOptions(phase_nodes=[21, 13]), coarse, z) is None
+
+
+def _segment_peaks(nlp: PhasedNlp, z: np.ndarray, p: int, samples: int) -> np.ndarray:
+    """The heat-rate ratio's peak of each segment of phase ``p``: its interpolants sampled at
+    ``samples`` + 1 points."""
+    mesh = nlp.meshes[p]
+    x, u = nlp.states(z, p), nlp.controls(z, p)
+    peaks = []
+    for a, b in zip(mesh.breaks[:-1], mesh.breaks[1:], strict=True):
+        s = np.linspace(a, b, samples + 1)
+        ratios = path_ratios(nlp.model, nlp.problem.phases[p].limits, mesh.at(x, s), mesh.at(u, s))
+        peaks.append(ratios[:, 0].max())
+    return np.array(peaks)
+
+
+def test_the_path_refinement_halves_the_segments_that_overshoot_between_points() -> None:
+    problem = build_phased_problem(_document())
+    nlp = _nlp(problem, (6, 4))
+    z = _reference_point(nlp)
+    peaks = [_segment_peaks(nlp, z, p, PATH_SAMPLES) for p in range(2)]
+    top = max(float(np.max(pk)) for pk in peaks)
+    # a heat-rate limit 1 % below the interpolants' largest peak: the segments whose peak
+    # exceeds the limit by more than PATH_OVERSHOOT are halved, the others kept
+    limit = problem.phases[0].limits.heat_max_W_m2
+    assert limit is not None
+    tight = top / 1.01
+    phases = [
+        replace(ph, limits=replace(ph.limits, heat_max_W_m2=limit * tight)) for ph in problem.phases
+    ]
+    squeezed = replace(problem, phases=phases)
+    found = _path_meshes(squeezed, LglSqpOptions(), PhasedNlp(squeezed, nlp.meshes), z)
+    assert found is not None
+    meshes, halved, worst = found
+    over = [pk / tight > 1.0 + PATH_OVERSHOOT for pk in peaks]
+    assert halved == sum(int(o.sum()) for o in over) >= 1
+    assert worst == pytest.approx(1.01, rel=1e-12)
+    for p in range(2):
+        coarse = nlp.meshes[p].breaks
+        expected = [
+            *[b for k, b in enumerate(coarse[:-1]) for b in
+              ((b, 0.5 * (b + coarse[k + 1])) if over[p][k] else (b,))],
+            1.0,
+        ]  # fmt: skip
+        np.testing.assert_allclose(meshes[p].breaks, expected, atol=1e-15)
+    # a limit above every peak, the option off, or the user's own phase meshes: no refinement
+    loose = replace(
+        problem,
+        phases=[
+            replace(ph, limits=replace(ph.limits, heat_max_W_m2=limit * top * 1.001))
+            for ph in problem.phases
+        ],
+    )
+    assert _path_meshes(loose, LglSqpOptions(), PhasedNlp(loose, nlp.meshes), z) is None
+    off = LglSqpOptions(refine_path_limits=False)
+    assert _path_meshes(squeezed, off, PhasedNlp(squeezed, nlp.meshes), z) is None
+    given = LglSqpOptions(phase_nodes=[25, 17])
+    assert _path_meshes(squeezed, given, PhasedNlp(squeezed, nlp.meshes), z) is None
 
 
 def _settings(iterations: int) -> SqpSettings:

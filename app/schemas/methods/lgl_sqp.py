@@ -40,6 +40,13 @@ class LglSqpOptions(ScpRunOptions):
         "phase_nodes): paper 004's exit altitude after propagation 276 m off on 20 segments, "
         "25 m after the refinement.",
     )
+    refine_path_limits: bool = Field(
+        True,
+        description="Once converged, halve each segment whose interpolated states exceed a "
+        "path limit by more than 0.2 % between its points and solve again from that answer, "
+        "up to three rounds (not with phase_nodes): the limits are met at the points, and the "
+        "flight between them is what the verification judges.",
+    )
     max_iterations: int = Field(
         600,
         ge=1,

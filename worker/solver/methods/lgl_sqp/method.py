@@ -23,6 +23,7 @@ from worker.solver.methods.base import MethodResult
 from worker.solver.methods.lgl_sqp.guess import Guess, global_guess, guess_on_mesh
 from worker.solver.methods.lgl_sqp.nlp import PhasedNlp
 from worker.solver.methods.lgl_sqp.sqp import SqpIteration, SqpOutcome, SqpSettings, solve_sqp
+from worker.solver.models.powered import path_ratios
 from worker.solver.phase_search import Parameterization, constant_params
 from worker.solver.phased_problem import PhasedProblem
 from worker.solver.scp.history import IterationRecord
@@ -33,6 +34,7 @@ from worker.solver.transcription.lgl import LglMesh
 
 Array = np.ndarray
 UNMET_LIMIT = 6
+"""How many unmet conditions a failure message names."""
 SWITCH_SHARE = 0.01
 """A segment whose commanded thrust changes by more than this share of the phase's largest
 thrust holds a burn's start or end."""
@@ -41,7 +43,14 @@ SWITCH_SPLIT = 8
 REFINEMENT_FALLBACK = ("max_iterations", "failed", "infeasible")
 """Ends of the refinement stage after which the first mesh's converged answer is reported
 (a cancelled or timed-out refinement ends the run as such)."""
-"""How many unmet conditions a failure message names."""
+PATH_OVERSHOOT = 2e-3
+"""A segment whose interpolants exceed a path limit by more than this share between its points
+is halved by the path refinement (the verification flies the same interpolants: on a Shuttle
+problem their peak was 1.0187 of the heat-rate limit where the flight's was 1.0176)."""
+PATH_SAMPLES = 16
+"""Samples per segment at which the path refinement evaluates the limits."""
+PATH_ROUNDS = 3
+"""Most path-refinement rounds: a segment is cut into at most 2**PATH_ROUNDS."""
 SI_TOLERANCE = {
     "altitude_m": 1.0,
     "longitude_deg": 1e-4,
@@ -99,6 +108,36 @@ def _burn_meshes(
             breaks.extend(np.linspace(mesh.breaks[k], mesh.breaks[k + 1], parts + 1)[:-1])
         meshes.append(LglMesh(np.array([*breaks, 1.0]), mesh.degree))
     return meshes
+
+
+def _path_meshes(
+    problem: PhasedProblem, options: LglSqpOptions, nlp: PhasedNlp, z: Array
+) -> tuple[list[LglMesh], int, float] | None:
+    """The meshes of a path-refinement round from the answer ``z``: each segment whose
+    interpolated states and controls exceed a path limit by more than ``PATH_OVERSHOOT``
+    between its points halved (hp-adaptive refinement on the constraint's error, after Darby,
+    Hager & Rao 2011); with the segments halved and the largest ratio found, or None when no
+    segment overshoots, the user gave phase_nodes, or refinement is off."""
+    if not options.refine_path_limits or options.phase_nodes is not None:
+        return None
+    local = np.linspace(0.0, 1.0, PATH_SAMPLES + 1)
+    meshes, halved, worst = [], 0, 0.0
+    for p, (mesh, ph) in enumerate(zip(nlp.meshes, problem.phases, strict=True)):
+        x, u = nlp.states(z, p), nlp.controls(z, p)
+        lower, upper = nlp.lower[nlp.slots[p].u0 :], nlp.upper[nlp.slots[p].u0 :]
+        breaks: list[float] = []
+        for k in range(mesh.segments):
+            a, b = mesh.breaks[k], mesh.breaks[k + 1]
+            s = a + (b - a) * local
+            uk = np.clip(mesh.at(u, s), lower[: nlp.nu], upper[: nlp.nu])
+            ratios = path_ratios(nlp.model, ph.limits, mesh.at(x, s), uk)
+            peak = float(ratios.max()) if ratios.size else 0.0
+            worst = max(worst, peak)
+            over = peak > 1.0 + PATH_OVERSHOOT
+            halved += over
+            breaks.extend([a, 0.5 * (a + b)] if over else [a])
+        meshes.append(LglMesh(np.array([*breaks, 1.0]), mesh.degree))
+    return (meshes, halved, worst) if halved else None
 
 
 def _on_mesh(coarse: PhasedNlp, fine: PhasedNlp, z: Array) -> Array:
@@ -290,6 +329,7 @@ def _sqp_record(
             "max_violation": it.max_violation,
             "line_search": it.line_search,
             "qp_iterations": it.qp_iterations,
+            "largest_step_at": it.largest_step_at,
         },
     )
 
@@ -415,20 +455,27 @@ def run(
         "iterations": len(out.iterations),
         "qp_solve_s": out.qp_solve_s,
     }
-    fine = _burn_meshes(problem, options, nlp, out.z) if out.status == "converged" else None
-    if fine is not None:
-        # the burn's switches resolved: the thrusting phases again on twice their segments,
-        # from the first answer, within what is left of the budget
-        refined = PhasedNlp(problem, fine)
-        stage = _Stage(refined, len(history), 2)
-        budget = max(options.max_iterations - len(out.iterations), 1)
+
+    def resolve(meshes: list[LglMesh]) -> tuple[SqpOutcome, PhasedNlp, bool]:
+        """The SQP again on ``meshes`` from the current answer, within what is left of the
+        budget, and whether its answer replaces the current one."""
+        nonlocal stage
+        refined = PhasedNlp(problem, meshes)
+        stage = _Stage(refined, len(history), stage.mesh + 1)
+        budget = max(options.max_iterations - (len(history) - generations), 1)
         second = solve_sqp(
             refined, _on_mesh(nlp, refined, out.z), replace(settings, max_iterations=budget),
             backend, on_iteration=on_sqp, should_stop=should_stop, clock=clock,
             offset=stage.offset,
         )  # fmt: skip
         second.qp_solve_s += out.qp_solve_s
-        kept = second.status not in REFINEMENT_FALLBACK
+        return second, refined, second.status not in REFINEMENT_FALLBACK
+
+    fine = _burn_meshes(problem, options, nlp, out.z) if out.status == "converged" else None
+    if fine is not None:
+        # the burn's switches resolved: the thrusting phases again on twice their segments,
+        # from the first answer, within what is left of the budget
+        second, refined, kept = resolve(fine)
         extra["sqp"]["refined"] = {
             "status": second.status,
             "iterations": len(second.iterations),
@@ -440,6 +487,31 @@ def run(
             refined_records = len(history) - stage.offset
         else:
             out.qp_solve_s = second.qp_solve_s
+    rounds: list[dict[str, Any]] = []
+    while out.status == "converged" and len(rounds) < PATH_ROUNDS:
+        found = _path_meshes(problem, options, nlp, out.z)
+        if found is None:
+            break
+        # a limit exceeded between the points: the overshooting segments halved, from the
+        # answer, within what is left of the budget
+        meshes, halved, worst = found
+        second, refined, kept = resolve(meshes)
+        rounds.append(
+            {
+                "peak_ratio_between_points": worst,
+                "segments_halved": halved,
+                "status": second.status,
+                "iterations": len(second.iterations),
+                "nodes": [m.points for m in meshes],
+            }
+        )
+        if not kept:
+            out.qp_solve_s = second.qp_solve_s
+            break
+        out, nlp = second, refined
+        refined_records = len(history) - stage.offset
+    if rounds:
+        extra["sqp"]["path_refinement"] = rounds
     status: Any = out.status
     code = message = None
     if out.status == "infeasible":
@@ -469,8 +541,9 @@ def run(
 
 @dataclass
 class _Stage:
-    """The mesh the SQP iterates on (1: the user's, 2: the burns refined), where its records
-    start in the history, and its last point (for the records' state changes)."""
+    """The mesh the SQP iterates on (1: the user's, 2: the burns refined, then one more per
+    path-refinement round), where its records start in the history, and its last point (for the
+    records' state changes)."""
 
     nlp: PhasedNlp
     offset: int
