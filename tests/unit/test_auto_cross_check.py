@@ -1,6 +1,7 @@
 """Auto's cross-check: on by default where local optima are known (objectives on the final
-latitude or longitude), and run on past a method that fails until one gives a second verified
-value. Pure logic: the methods are replaced by a function that returns fixed outcomes."""
+latitude or longitude, heat loads whose answer skips), and run on past a method that fails
+until one gives a second verified value. Pure logic: the methods are replaced by a function
+that returns fixed outcomes."""
 
 from __future__ import annotations
 
@@ -22,10 +23,25 @@ def _document(scenario: str, method: dict[str, Any], heading_deg: float | None =
     return ProblemDocument.model_validate(document)
 
 
-def test_the_default_cross_checks_range_objectives_only() -> None:
+def _flight(altitudes_km: list[float]) -> dict[str, Any]:
+    return {"trajectory": {"altitude_m": [1000.0 * h for h in altitudes_km]}}
+
+
+UNDULATING = _flight([105, 95, 88, 92, 87, 81, 83, 74, 60, 30])
+"""Paper 000's heat-load optimum in outline: climbs of 4 km at most."""
+SKIPPING = _flight([111, 97, 72, 66, 72, 82, 78, 58, 62, 27])
+"""A skipping heat-load answer in outline: 16 km up from its first low point."""
+
+
+def test_the_default_cross_checks_range_objectives_and_skipping_heat_loads() -> None:
     assert cross_check_wanted(_document("shuttle-max-crossrange", {}))  # max_final_latitude
-    assert not cross_check_wanted(_document("rlv-min-heat-load", {}))
+    heat_load = _document("rlv-min-heat-load", {})
+    assert not cross_check_wanted(heat_load)
+    assert not cross_check_wanted(heat_load, UNDULATING)
+    assert cross_check_wanted(heat_load, SKIPPING)
+    assert not cross_check_wanted(heat_load, {"trajectory": None})
     assert not cross_check_wanted(_document("shuttle-max-crossrange", {"cross_check": False}))
+    assert not cross_check_wanted(_document("rlv-min-heat-load", {"cross_check": False}), SKIPPING)
     assert cross_check_wanted(_document("rlv-min-heat-load", {"cross_check": True}))
 
 

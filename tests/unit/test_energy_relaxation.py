@@ -32,6 +32,22 @@ def test_trust_weight_stiffens_after_a_swing_back_and_stays_relaxed() -> None:
     assert trust.relaxed  # the floor was reached once: a small step now is a stationary one
 
 
+def test_a_rejected_step_undoes_two_relaxations_and_raises_the_floor_above_its_weight() -> None:
+    trust = RelaxingTrustWeight(initial=1.0, minimum=1e-6, factor=0.25, hold=0)
+    for k in range(3):
+        trust.after_iteration(k, np.array([1.0, 0.0]))
+    assert np.isclose(trust.weight, 0.25**3)
+    assert trust.rejected()  # 0.25**3 made a step the linearization did not hold
+    assert np.isclose(trust.weight, 0.25) and np.isclose(trust.floor, 0.25**2)
+    assert not trust.relaxed
+    for k in range(3, 6):
+        trust.after_iteration(k, np.array([1.0, 0.0]))
+    assert np.isclose(trust.weight, 0.25**2) and trust.relaxed  # never back to 0.25**3
+    fixed = RelaxingTrustWeight(initial=5e-3, minimum=1e-5, factor=1.0, hold=0)
+    assert not fixed.rejected()
+    assert fixed.weight == 5e-3  # the paper's fixed weight stays fixed
+
+
 def test_factor_one_keeps_the_paper_weight_and_counts_as_relaxed() -> None:
     trust = RelaxingTrustWeight(initial=5e-3, minimum=1e-5, factor=1.0, hold=0)
     trust.after_iteration(3, np.ones(3))

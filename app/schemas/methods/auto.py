@@ -54,7 +54,9 @@ class AutoOptions(BoundedOptions):
         "report both values; a difference over 0.5 % is flagged (a local optimum is possible) "
         "and the better verified answer is kept. null: on for the problem classes known to "
         "have several local optima (an objective on the final latitude or longitude: the turn "
-        "direction and bank-sign choices give separate optima), off otherwise.",
+        "direction and bank-sign choices give separate optima; a minimum heat load whose "
+        "answer skips, climbing more than 7.2 km from a low point: each skip's depth is a "
+        "choice), off otherwise.",
     )
     nodes: int | None = Field(
         None,

@@ -213,7 +213,7 @@ def solve_auto(problem: ProblemDocument, solve_one: SolveOne, **hooks: Any) -> d
         if run.stop is not None:
             break
     cross: dict[str, Any] | None = None
-    if kept is not None and cross_check_wanted(problem) and run.stop is None:
+    if kept is not None and cross_check_wanted(problem, kept.result) and run.stop is None:
         cross = _cross_check(run, kept, selection)
         other = run.attempts[-1]
         if other is not kept and other.succeeded:

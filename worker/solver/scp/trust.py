@@ -65,6 +65,20 @@ class RelaxingTrustWeight:
             self.weight = max(self.weight * self.factor, self.floor)
         self.relaxed = self.relaxed or self.weight <= self.floor * (1.0 + 1e-9)
 
+    def rejected(self) -> bool:
+        """After a step whose linear model broke down: the weight that made it was too light
+        for this problem, so the next try is ``1 / factor**2`` times heavier (two relaxations
+        undone) and the floor is raised to one relaxation above it for the rest of the run.
+        False (nothing changed) for a fixed weight (a factor of 1, the paper's): the step is
+        then taken."""
+        if self.factor >= 1.0:
+            return False
+        self.floor = max(self.floor, self.weight / self.factor)
+        self.weight = max(self.weight / self.factor**2, self.floor)
+        self.relaxed = False
+        self._last_step = None
+        return True
+
 
 @dataclass
 class DefectTrustWeight:

@@ -10,8 +10,9 @@ added only when a subproblem is infeasible, and then penalized and reported; aft
 iterations the nodes are re-spaced evenly in flight time (again when the flight time moves);
 the bank step between nodes is bounded, a step is not converged while the bank chatters or the
 control cone is slack (then the controls move onto the circle keeping their vertical lift); the
-trust-region and regularization weights are relaxed after the first iterations and a step is
-converged only once they are and the running costs are stationary (the paper's fixed weights
+trust-region and regularization weights are relaxed after the first iterations (a step the
+linearization does not hold is rejected and the weight stiffened) and a step is converged only
+once they are and the running costs are stationary (the paper's fixed weights
 creep towards the optimum and its state test stops them short); near convergence the
 trapezoid is corrected by its error on each interval (transcription.energy_defect), so the
 converged trajectory is the one its controls fly at any node count; fixed terminal conditions
@@ -69,6 +70,10 @@ DEFECT_SUBSTEPS = 8
 """RK4 steps per interval of the deferred correction (energy_defect)."""
 NEAR_FACTOR = 10.0
 """The deferred correction starts once every state step is below this many tolerances."""
+REJECT_ERROR = 100.0
+"""A step after the held iterations whose linear model errs by more than this many trust units
+on one interval is rejected: the relaxed trust weight let it leave where the linearization
+holds."""
 SETTLED_ITERATIONS = 2
 """Consecutive stationary iterations the stop test needs: one small cost change can be chance
 (measured: the hard terminal point at 161 nodes stopped on one, +0.31 % above its optimum)."""
@@ -124,6 +129,7 @@ class EnergyScp:
         )
         self.tol = ENERGY.deltas_from_si(options.stop_tolerance, problem.scales)
         self.next_ed: EnergyDerivatives | None = None
+        self.reference_ed: EnergyDerivatives | None = None
         self.data: SubproblemData | None = None
         self.tr = self.transcription(options.virtual_control == "on")
         self.extra: dict[str, Any] = {}
@@ -171,10 +177,11 @@ class EnergyScp:
     def linearize(self, reference: EnergyIterate) -> EnergyDerivatives:
         """The energy-form dynamics and their Jacobians about ``reference``."""
         ed, self.next_ed = self.next_ed, None
-        if ed is not None:  # the initial guess's, computed for the objective's scales
-            return ed
-        p = self.problem
-        return energy_dynamics(reference.x, reference.u, reference.e, p.forces, p.omega)
+        if ed is None:  # else the initial guess's (for the objective's scales) or a rejected
+            p = self.problem  # step's reference's
+            ed = energy_dynamics(reference.x, reference.u, reference.e, p.forces, p.omega)
+        self.reference_ed = ed
+        return ed
 
     def subproblem(
         self, reference: EnergyIterate, linearization: EnergyDerivatives, iteration: int
@@ -300,7 +307,9 @@ class EnergyScp:
     def judge(
         self, reference: EnergyIterate, proposal: scp.Proposal[EnergyIterate]
     ) -> scp.Judgement[EnergyIterate, EnergyDerivatives]:
-        """Every step is taken; small when no state moved more than its tolerance (eq. 37) on
+        """A step after the held iterations whose linear model errs by more than
+        ``REJECT_ERROR`` on an interval is rejected (``reject``); every other step is taken;
+        small when no state moved more than its tolerance (eq. 37) on
         a grid that has been used once, the trust-region weight has been relaxed to its floor,
         every running cost has been stationary over ``SETTLED_ITERATIONS`` consecutive
         iterations (counted on like costs: not across the start of the deferred correction),
@@ -311,6 +320,12 @@ class EnergyScp:
         time (which resolves the terminal maneuver that a grid even in energy crowds into its
         last intervals), and again whenever the flight time has moved (``regrid_due``)."""
         iteration = proposal.record.iteration
+        if (
+            iteration > self.options.trust_hold_iterations
+            and proposal.record.linearization_error > REJECT_ERROR
+            and self.trust.rejected()
+        ):
+            return self.reject(proposal)
         chatter = bank_chatter(proposal.reference.u_solution, self.options.chatter_angle_deg)
         if chatter:
             proposal.record.extra["bank_chatter_nodes"] = chatter
@@ -349,6 +364,17 @@ class EnergyScp:
             self.regrid_done = iteration + 1
             proposal.record.extra["regrid"] = True
         return verdict
+
+    def reject(
+        self, proposal: scp.Proposal[EnergyIterate]
+    ) -> scp.Judgement[EnergyIterate, EnergyDerivatives]:
+        """Keep the reference and solve again under the trust weight ``trust.rejected`` made
+        heavier; the step's costs are forgotten."""
+        self.values = self.previous_values  # the reference's, as before the step
+        self.tr.set_weights(self.trust.weight, self.regularization.weights)
+        self.next_ed = self.reference_ed
+        proposal.record.extra["rejected"] = True
+        return scp.Judgement(accepted=False, virtual_control=self.virtual)
 
     def near(self, small: bool) -> bool:
         """When the deferred correction starts: on an iterate the plain trapezoid calls
