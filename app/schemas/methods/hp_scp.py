@@ -58,7 +58,13 @@ class HpScpOptions(ScpRunOptions):
     intervals: int = Field(
         20, ge=1, le=400, description="Intervals of the initial mesh; nodes - 1 must divide."
     )
-    max_iterations: int = Field(100, ge=1, le=500, description="Most SCP iterations, 1..500.")
+    max_iterations: int = Field(
+        250,
+        ge=1,
+        le=500,
+        description="Most SCP iterations, 1..500 (paper 003's case: 40; the user-problem suite's "
+        "maximum final latitudes: up to 200).",
+    )
     initial_alpha_deg: float = Field(
         20.0, gt=-90, lt=90, description="Angle of attack of the constant-control guess, deg."
     )
@@ -104,7 +110,7 @@ class HpScpOptions(ScpRunOptions):
         2.0, ge=1.0, le=100.0, description="Factor of the virtual-control weight per iteration."
     )
     virtual_control_steering: float = Field(
-        10.0,
+        3.0,
         ge=0.0,
         le=1.0e3,
         description="Steer the virtual-control weight to this many times the largest "
