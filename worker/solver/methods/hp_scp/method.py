@@ -36,6 +36,7 @@ from worker.solver.methods.hp_scp.linearization import (
     linearize,
 )
 from worker.solver.methods.hp_scp.mesh_update import assess, refined
+from worker.solver.methods.hp_scp.stop import SettledProbe
 from worker.solver.methods.hp_scp.subproblem import (
     Columns,
     ObjectiveWeights,
@@ -160,7 +161,7 @@ class HpScp:
         self.state = HpState(options.weight_trust_region)
         self.w_vc = options.weight_virtual_control
         self.accepted_costs: list[float] = []
-        self.probed_settled = False  # a settled objective already led to a lighter probe
+        self.probe = SettledProbe()
         self.penalty = VariableQuadraticPenalty(
             initial_weight=options.weight_trust_region,
             rule=options.penalty_rule,
@@ -677,22 +678,17 @@ class HpScp:
             factor = 0.5 if abs(ratio - 1.0) > RATIO_EXACT else LIGHTEN_EXACT
             state.weight = max(state.weight * factor, self.options.weight_trust_region_min)
         self.accepted_costs.append(self.objective_value(proposal.reference))
-        settled = self._settled()
-        small = (pending.small_step or settled) and defect_ok
-        probed = settled and self.probed_settled
-        if (
-            small
-            and not probed
-            and not self.holding
-            and state.weight > self.options.weight_trust_region_min
-        ):
+        floor = self.options.weight_trust_region_min
+        small, probe = self.probe.judge(
+            pending.small_step,
+            self._settled(),
+            defect_ok,
+            can_lighten=not self.holding and state.weight > floor,
+        )
+        if probe:
             # small only because the trust weight holds it: lighten the weight and go on, so
-            # that a converged step is one the trust penalty no longer shapes; an objective
-            # still settled after such a probe (its lighter steps rejected or going nowhere)
-            # is stationary on this mesh
-            state.weight = max(state.weight / PROBE_FACTOR, self.options.weight_trust_region_min)
-            self.probed_settled = self.probed_settled or settled
-            small = False
+            # that a converged step is one the trust penalty no longer shapes
+            state.weight = max(state.weight / PROBE_FACTOR, floor)
         if self.holding and (pending.virtual <= HOLD_RELEASE or small):
             self.holding, small = False, False  # feasible at the guessed time: free it
         return self._accept(proposal, pending, small)
@@ -709,7 +705,7 @@ class HpScp:
             self.between_on = True
             record.extra["between_points"] = "on"
             self.accepted_costs.clear()
-            self.probed_settled = False
+            self.probe.reset()
             self.state.weight = max(self.state.weight, REFINED_TRUST_WEIGHT)
             return scp.Judgement(accepted=True, small=False, virtual_control=pending.virtual)
         if self.options.mesh == "adaptive" and small:
@@ -722,7 +718,7 @@ class HpScp:
                 # weight left at its floor is rejected many times before it recovers
                 self.state.weight = max(self.state.weight, REFINED_TRUST_WEIGHT)
                 self.accepted_costs.clear()  # the settling test starts again on the new mesh
-                self.probed_settled = False
+                self.probe.reset()
                 record.extra["mesh_refined"] = {
                     "intervals": mesh.num_intervals,
                     "points": mesh.num_points,
