@@ -176,5 +176,9 @@ class EnergyScpOptions(ScpRunOptions):
         "when a subproblem is infeasible without it.",
     )
     weight_virtual_control: float = Field(
-        1e4, gt=0, description="Weight on the virtual-control (dynamics slack) norm."
+        1e5,
+        gt=0,
+        description="Weight on the virtual-control (dynamics slack) norm: an exact penalty, "
+        "so it must exceed what a unit of slack buys of the objective (1e4 let a maximum final "
+        "longitude buy 0.7 deg with slack it never gave back, docs/methods/energy-scp.md).",
     )
