@@ -449,8 +449,9 @@ def test_ctrl_c_during_a_solve_is_exit_130_with_one_line(tmp_path: Path) -> None
 
 
 def test_a_breaking_solve_is_a_failed_result_without_numpy_warnings(trajopt: Trajopt) -> None:
-    # 3 nodes: the linearization breaks down (a speed from an energy above the potential's)
+    # 3 nodes: the iterates leave the physical range (a speed from an energy above the
+    # potential's, or a step beyond the divergence bounds, depending on the weights)
     run = trajopt("solve", "rlv-min-heat-load", "--nodes", "3", "-q")
     assert run.code == 1 and run.out.startswith("status: failed")
-    assert "numerical_error" in run.out
+    assert "reason: numerical_error" in run.out or "reason: diverged" in run.out, run.out
     assert "Warning" not in run.err and "Traceback" not in run.err, run.err
