@@ -129,7 +129,7 @@ class EnergyScp:
         )
         self.tol = ENERGY.deltas_from_si(options.stop_tolerance, problem.scales)
         self.next_ed: EnergyDerivatives | None = None
-        self.reference_ed: EnergyDerivatives | None = None
+        self.reference_ed: EnergyDerivatives | None = None  # the current subproblem's
         self.data: SubproblemData | None = None
         self.tr = self.transcription(options.virtual_control == "on")
         self.extra: dict[str, Any] = {}
@@ -177,16 +177,16 @@ class EnergyScp:
     def linearize(self, reference: EnergyIterate) -> EnergyDerivatives:
         """The energy-form dynamics and their Jacobians about ``reference``."""
         ed, self.next_ed = self.next_ed, None
-        if ed is None:  # else the initial guess's (for the objective's scales) or a rejected
-            p = self.problem  # step's reference's
-            ed = energy_dynamics(reference.x, reference.u, reference.e, p.forces, p.omega)
-        self.reference_ed = ed
-        return ed
+        if ed is not None:  # the initial guess's, computed for the objective's scales
+            return ed
+        p = self.problem
+        return energy_dynamics(reference.x, reference.u, reference.e, p.forces, p.omega)
 
     def subproblem(
         self, reference: EnergyIterate, linearization: EnergyDerivatives, iteration: int
     ) -> ConeProblem:
         """The trapezoidal SOCP about ``reference`` (paper 000 Problem 3)."""
+        self.reference_ed = linearization  # a rejected step is solved again about it
         run_grad, term_grad = self.objective.gradients(reference.x, linearization)
         self.data = SubproblemData(
             x_ref=reference.x,
@@ -372,9 +372,10 @@ class EnergyScp:
         heavier; the step's costs are forgotten."""
         self.values = self.previous_values  # the reference's, as before the step
         self.tr.set_weights(self.trust.weight, self.regularization.weights)
-        self.next_ed = self.reference_ed
         proposal.record.extra["rejected"] = True
-        return scp.Judgement(accepted=False, virtual_control=self.virtual)
+        return scp.Judgement(
+            accepted=False, virtual_control=self.virtual, linearization=self.reference_ed
+        )
 
     def near(self, small: bool) -> bool:
         """When the deferred correction starts: on an iterate the plain trapezoid calls

@@ -124,12 +124,13 @@ def _path_meshes(
     meshes, halved, worst = [], 0, 0.0
     for p, (mesh, ph) in enumerate(zip(nlp.meshes, problem.phases, strict=True)):
         x, u = nlp.states(z, p), nlp.controls(z, p)
-        lower, upper = nlp.lower[nlp.slots[p].u0 :], nlp.upper[nlp.slots[p].u0 :]
+        u0 = nlp.slots[p].u0
+        lower, upper = nlp.lower[u0 : u0 + nlp.nu], nlp.upper[u0 : u0 + nlp.nu]
         breaks: list[float] = []
         for k in range(mesh.segments):
             a, b = mesh.breaks[k], mesh.breaks[k + 1]
             s = a + (b - a) * local
-            uk = np.clip(mesh.at(u, s), lower[: nlp.nu], upper[: nlp.nu])
+            uk = np.clip(mesh.at(u, s), lower, upper)
             ratios = path_ratios(nlp.model, ph.limits, mesh.at(x, s), uk)
             peak = float(ratios.max()) if ratios.size else 0.0
             worst = max(worst, peak)
