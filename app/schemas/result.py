@@ -200,12 +200,11 @@ class HistoryExtra(BaseModel):
     )
     auto_attempt: int | None = Field(
         None,
-        description="Only for method auto: the attempt the iteration belongs to (1-based, the "
+        description="For method auto, or a named method's second start: the attempt the "
+        "iteration belongs to (1-based, the "
         "result's attempts[].attempt).",
     )
-    method: str | None = Field(
-        None, description="Only for method auto: the method of that attempt."
-    )
+    method: str | None = Field(None, description="With auto_attempt: the method of that attempt.")
 
 
 class HistoryRecord(BaseModel):
@@ -663,7 +662,8 @@ class AutoAttempt(_Record):
 
 
 class CrossCheck(_Record):
-    """Only for method auto with cross_check: the two verified values of one problem."""
+    """Only for method auto with cross_check, or a named method's second start: the two
+    verified values of one problem."""
 
     attempts: list[int] = Field(..., description="The attempts compared (attempts[].attempt).")
     methods: list[str] = Field(..., description="Their methods.")
@@ -719,11 +719,14 @@ class ResultDocument(_Record):
     )
     attempts: list[AutoAttempt] | None = Field(
         None,
-        description="Only for method auto: every method it ran, in order, with its status, "
+        description="For method auto: every method it ran, in order (for a named method with a "
+        "second start: both runs), with its status, "
         "reason, iterations, time and value; the history holds each one's iterations.",
     )
     cross_check: CrossCheck | None = Field(
-        None, description="Only for method auto with cross_check: the two values compared."
+        None,
+        description="For method auto with cross_check, or a named method's second start: the "
+        "two values compared.",
     )
     timing: Timing
     provenance: Provenance = Field(default_factory=Provenance)

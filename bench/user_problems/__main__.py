@@ -270,6 +270,8 @@ def main(argv: list[str] | None = None) -> int:
                 "cpu_s": round(cpu, 3),
                 "nlp_cpu_s": nlp_cpu(record),
                 "iterations": iterations(result),
+                # each run's method and value (auto's attempts, a named method's second start)
+                "attempts": [[a["method"], a["objective"]] for a in result.get("attempts") or []],
                 **judge(record, result),
             }
             rows.append(row)

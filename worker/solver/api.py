@@ -17,6 +17,7 @@ from app.schemas.methods import AutoOptions
 from app.schemas.plausibility import plausibility_warnings
 from app.schemas.result import json_ready
 from worker.solver.auto import solve_auto
+from worker.solver.auto.named import with_second_start
 from worker.solver.diagnosis import BUDGET_CODES, advice, blame_input, input_advice, stall_note
 from worker.solver.failure_causes import name_causes, refusal
 from worker.solver.finite import non_finite_entries
@@ -289,17 +290,34 @@ def solve_problem(
     (infeasible, diverged, time limit, numerical trouble, failed verification) come back as a
     result with ``status`` ``failed`` or ``timed_out`` and a ``failure`` {code, message}; only
     programming errors raise. A problem whose method is ``auto`` is solved by the methods that
-    accept it in auto's order (``worker.solver.auto``), each attempt a solve of this function.
+    accept it in auto's order (``worker.solver.auto``), each attempt a solve of this function;
+    a named method's success in a class with separate local optima is followed by a second
+    start of the same method (``auto.named``; ``method.second_start``).
     """
+    hooks: dict[str, Any] = {
+        "on_iteration": on_iteration,
+        "should_stop": should_stop,
+        "on_phase": on_phase,
+        "on_kernels": on_kernels,
+    }
     if isinstance(problem.method, AutoOptions):
-        return solve_auto(
-            problem,
-            solve_problem,
-            on_iteration=on_iteration,
-            should_stop=should_stop,
-            on_phase=on_phase,
-            on_kernels=on_kernels,
-        )
+        return solve_auto(problem, solve_problem, **hooks)
+    cpu_start = time.process_time()
+    first = _solve_named(problem, **hooks, prechecks=prechecks)
+    return with_second_start(problem, first, solve_problem, hooks, cpu_start)
+
+
+def _solve_named(
+    problem: ProblemDocument,
+    *,
+    on_iteration: IterationCallback | None,
+    should_stop: StopCheck | None,
+    on_phase: PhaseCallback | None,
+    on_kernels: Callable[[KernelWait], None] | None,
+    prechecks: bool,
+) -> dict[str, Any]:
+    """One run of the document's named method: its optimization, verification and advice
+    (``solve_problem`` without the second start)."""
     start = time.perf_counter()
     cpu_start = time.process_time()
     method = problem.method.name
@@ -347,6 +365,7 @@ def solve_problem(
             }
         )
     options = problem.method
+    assert not isinstance(options, AutoOptions)  # auto is solved by its attempts
     start_note: str | None = None
     guess = problem.initial_guess
     if isinstance(model, EntryProblem) and guess is not None and guess.kind == "global":

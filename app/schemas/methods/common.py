@@ -59,6 +59,17 @@ class ScpRunOptions(BoundedOptions):
         f"(0, {MAX_TIME_LIMIT_S:g}]; a wall-clock safety limit of 4 x as many seconds also ends "
         "it.",
     )
+    second_start: bool | None = Field(
+        None,
+        description="After a success, run the method again from another start (the global "
+        "search's, initial_guess kind global; lgl-sqp its own search's next seed) and keep the "
+        "better verified answer, both values in the result's cross_check and both runs in its "
+        "attempts; the second run has what the first left of time_limit_s. null: where the "
+        "problem class has separate local optima (a minimum heat load whose answer skips: "
+        "climbs more than 7.2 km from a low point); true: after every success; false: never. "
+        "Not when the document gives its own initial_guess. Under method auto its own "
+        "cross-check does this.",
+    )
     conic_backend: ConicBackendName = Field(
         "clarabel",
         description='Subproblem solver: "clarabel" directly; "piqp" for the subproblems that are '

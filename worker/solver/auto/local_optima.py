@@ -17,8 +17,8 @@ way give separate local optima (Betts' Shuttle from a 60 deg heading: cheb-scvx 
 verified 62.40 deg of final latitude, lgl-sqp and the NLP reference to 63.906 deg)."""
 SKIP_OBJECTIVES = frozenset({"min_heat_load"})
 """Objectives whose answers may skip, each skip's depth a choice between separate local optima
-(an RLV heat load of the user-problem suite, 015: energy-scp's verified 498.9 MJ/m^2 with
-shallow skips, foh-ptr's 474.3 and the NLP reference's 473.6 with deep ones)."""
+(the user-problem suite's RLV heat load 015 has a shallow-skip and a deep-skip optimum,
+docs/problem-contract.md)."""
 SKIP_CLIMB_M = 7200.0
 """A climb of more than this from a low point is a skip: one scale height of Earth's
 atmosphere, over which the density falls by a factor e (paper 000's heat-load optimum

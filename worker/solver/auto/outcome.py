@@ -123,10 +123,11 @@ def compare(first: Attempt, second: Attempt) -> dict[str, Any]:
     entry["agree"] = difference <= AGREEMENT
     if not entry["agree"]:
         best = better(first, second)
+        whose = best.name if first.name != second.name else f"attempt {best.index}"
         entry["warning"] = (
             f"{first.name} (attempt {first.index}) found {va:.6g} and {second.name} (attempt "
             f"{second.index}) {vb:.6g}, {100 * difference:.2f} % apart: a local optimum is "
-            f"possible; the better verified value ({best.name}'s) is kept"
+            f"possible; the better verified value ({whose}'s) is kept"
         )
     return entry
 

@@ -52,7 +52,7 @@ class SolveOne(Protocol):
     ) -> dict[str, Any]: ...
 
 
-def _tagged(record: dict[str, Any], offset: int, index: int, name: str) -> dict[str, Any]:
+def tagged(record: dict[str, Any], offset: int, index: int, name: str) -> dict[str, Any]:
     """An attempt's history record numbered on from the attempts before it and tagged."""
     extra = {**(record.get("extra") or {}), "auto_attempt": index, "method": name}
     return {**record, "iteration": int(record["iteration"]) + offset, "extra": extra}
@@ -96,17 +96,22 @@ class AutoRun:
             return None
         own = options.time_limit_s if "time_limit_s" in self.auto.overrides.get(name, {}) else None
         limit = round(left if own is None else min(own, left), 3)
-        options = options.model_copy(update={"time_limit_s": limit})
+        # auto's own cross-check looks for other optima: no named second start inside it
+        chosen = self.auto.overrides.get(name, {})
+        update: dict[str, Any] = {"time_limit_s": limit}
+        if "second_start" not in chosen:
+            update["second_start"] = False
+        options = options.model_copy(update=update)
         doc = with_method(document or self.problem, options)
         index, offset = len(self.attempts) + 1, len(self.history)
         sink = self.hooks.get("on_iteration")
 
         def forward(record: dict[str, Any]) -> None:
             if sink is not None:
-                sink(_tagged(record, offset, index, name))
+                sink(tagged(record, offset, index, name))
 
         result = self.solve_one(doc, **{**self.hooks, "on_iteration": forward})
-        records = [_tagged(r, offset, index, name) for r in result.get("history") or []]
+        records = [tagged(r, offset, index, name) for r in result.get("history") or []]
         self.history += records
         attempt = Attempt(
             index,
@@ -174,17 +179,17 @@ def _cross_check(run: AutoRun, kept: Attempt, selection: Selection) -> dict[str,
         chosen = next(c for c in selection.candidates if c.name == kept.name)
         start = second_start(run.problem, chosen)
         if start is None:
-            return _unchecked(
+            return unchecked(
                 kept, "no other method accepts the problem and the method takes no second start"
             )
         document, options, note = start
         other = run.run(kept.name, options, "cross_check", document, note)
     if other is None:
-        return _unchecked(kept, "no time was left for a cross-check")
+        return unchecked(kept, "no time was left for a cross-check")
     return compare(kept, other)
 
 
-def _unchecked(kept: Attempt, why: str) -> dict[str, Any]:
+def unchecked(kept: Attempt, why: str) -> dict[str, Any]:
     """The ``cross_check`` entry of a run that made none."""
     return {
         "attempts": [kept.index],
