@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +61,7 @@ def test_the_better_of_two_runs_is_kept_with_both_in_the_result() -> None:
         seen.append(document)
         return _result("succeeded", 4.74e8, 2, SKIPPING)
 
-    result = with_second_start(problem, first, solve_one, {}, cpu_start=0.0)
+    result = with_second_start(problem, first, solve_one, {}, time.process_time())
     (second,) = seen
     assert second.initial_guess is not None and second.initial_guess.kind == "global"
     assert second.method.second_start is False  # no third start
@@ -90,7 +91,9 @@ def test_a_document_with_its_own_start_gets_no_second_one_and_is_told() -> None:
     def solve_one(document: ProblemDocument, **hooks: Any) -> dict[str, Any]:
         raise AssertionError("no second run")
 
-    result = with_second_start(problem, _result("succeeded", 5e8, 3, SKIPPING), solve_one, {}, 0)
+    result = with_second_start(
+        problem, _result("succeeded", 5e8, 3, SKIPPING), solve_one, {}, time.process_time()
+    )
     assert "takes no second start" in result["cross_check"]["note"]
     assert len(result["attempts"]) == 1
 

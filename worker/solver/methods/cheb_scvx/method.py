@@ -41,6 +41,8 @@ from worker.solver.methods.cheb_scvx.start import (
     route_start,
 )
 from worker.solver.methods.cheb_scvx.subproblem import (
+    BOUND_UNIT,
+    GAP_UNIT,
     PATH_UNIT,
     ZONE_UNIT,
     Columns,
@@ -49,6 +51,7 @@ from worker.solver.methods.cheb_scvx.subproblem import (
     Units,
     Waypoint,
     build,
+    smoothing,
     step_of,
 )
 from worker.solver.models.layout import POINT_MASS
@@ -59,6 +62,7 @@ from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.history import IterationRecord, solver_fields
 from worker.solver.trajectory import OptimizedTrajectory
+from worker.solver.verification import verify
 
 Array = np.ndarray
 LIFT_UNIT = 0.1
@@ -72,6 +76,12 @@ RATIO_REJECT, RATIO_SHRINK, RATIO_GROW = 0.0, 0.25, 0.7
 above the third (Mao, Szmuk & Acikmese 2016, Algorithm 1)."""
 RADIUS_MAX, RADIUS_MIN = 4.0, 1.0e-6
 """Largest and smallest trust-box scale against the initial box."""
+GAP_SWITCH = 1.0e-3
+"""A converged answer whose relaxed cone is slacker than this somewhere (u3 - u1^2 - u2^2) goes
+on with the lift vector on its manifold (``Setup.on_manifold``)."""
+DRIFT_SWITCH = 0.2
+"""... and whose unflown lift would move the flight by more than this (trust units:
+``ChebScvx.unflown_drift``): a slack cone where the air is too thin to matter flies as planned."""
 FEASIBLE = 1.0e-3
 """Largest defect or slack (scaled units: 1 km, 0.5 deg, 50 m/s ..., 1 % of a limit) of a
 reference that may be called converged."""
@@ -107,8 +117,16 @@ class _Pending:
 class ChebScvx:
     """Paper 001's method on the driver: start, linearize, build, propose, judge."""
 
-    def __init__(self, problem: EntryProblem, options: ChebScvxOptions, model: PlanetModel) -> None:
+    def __init__(
+        self,
+        problem: EntryProblem,
+        options: ChebScvxOptions,
+        model: PlanetModel,
+        verified: EntryProblem | None = None,
+    ) -> None:
         self.problem, self.options, self.model = problem, options, model
+        self.verified = problem if verified is None else verified
+        """The problem as the result's verification flies it (``flies``)."""
         self.lift_range = lift_range(problem)
         self.law = lift_law(problem.forces)
         sc = problem.scales
@@ -145,6 +163,8 @@ class ChebScvx:
         self.ref_cost: float | None = None
         self.merit_weight = options.weight_virtual_control
         """The L1 penalty weight of the ratio test's merit (``merit_weight_of``)."""
+        self.objective_bound: float | None = None
+        """On the lift manifold: the relaxed optimum's objective, which the answer keeps."""
         self.infeasibility_trail: list[float] = []
         """The sum of the scaled violations of each accepted candidate, in order (``stalled``)."""
         self._order = self._collocation_order()
@@ -256,6 +276,9 @@ class ChebScvx:
         if self.problem.bank_rate_max is not None:
             near = (1.0 - self.options.path_margin) * self.problem.bank_rate_max
             self.rate_set |= np.abs(linearization.bank_rate) > near
+        if self.objective_bound is not None:
+            room = self.objective_bound - self.plain_objective(reference, linearization)
+            self.setup.objective_room = room
         problem, self.cols = build(
             self.problem,
             self.segments,
@@ -383,6 +406,7 @@ class ChebScvx:
                 ],
                 "final_time_change_s": float(np.sum(dT)) * sc.time_s,
                 "second_order_correction": corrected,
+                "unflown_drift": self.unflown_drift(new, lin) if gap > GAP_SWITCH else 0.0,
                 "regularized_retry": self.retried,
                 **({"lift_law": self.law} if self.law != "polar" else {}),
             },
@@ -396,9 +420,11 @@ class ChebScvx:
         merit's weight on the virtual control and slacks the step leaves."""
         assert self.cols is not None and self.q is not None
         elastic = float(np.sum(x[self.cols.nu : self.cols.n]))
+        du = step_of(x, self.cols, self.units, self.segments)[1]
         return (
             self.objective(reference, lin)
             + float(self.q @ x)
+            + smoothing(self.setup, du, self.cols.scale)  # the quadratic part of the term
             - (self.setup.weight - self.merit_weight) * elastic
         )
 
@@ -442,13 +468,63 @@ class ChebScvx:
             largest = self.largest_violation(proposal.reference, pend.lin)
             stalled = f"{stalled}, the largest at {largest}"
             record.extra["infeasibility_stalled"] = True
+        small = pend.small
+        if (
+            small
+            and self.options.lift_manifold
+            and not self.setup.on_manifold
+            and record.relaxation_gap > GAP_SWITCH
+            and self.unflown_drift(proposal.reference, pend.lin) > DRIFT_SWITCH
+            and not self.flies(proposal.reference, record)
+        ):
+            # converged with the relaxed cone slack: go on with the lift vector on its
+            # manifold, linearized, so that the answer is one the vehicle can fly
+            self.setup.on_manifold, small, stalled = True, False, None
+            self.setup.smooth_weight = self.options.weight_lift_smoothing
+            # the relaxation's optimum bounds the objective: the smoothing only breaks ties
+            self.objective_bound = self.plain_objective(proposal.reference, pend.lin)
+            self.infeasibility_trail.clear()
+            record.extra["lift_manifold"] = True
         return scp.Judgement(
             True,
-            small=pend.small,
+            small=small,
             virtual_control=pend.virtual,
             linearization=pend.lin,
             stalled=stalled,
         )
+
+    def flies(self, it: ChebIterate, record: IterationRecord) -> bool:
+        """Whether ``it``'s controls, flown through the full dynamics as the result's
+        verification flies them, meet the problem (recorded as ``relaxed_answer_flies``)."""
+        try:
+            report = verify(self.verified, self.trajectory(it))
+            feasible = bool(report["feasible"])
+        except (ValueError, FloatingPointError, ArithmeticError):
+            feasible = False
+        record.extra["relaxed_answer_flies"] = feasible
+        return feasible
+
+    def unflown_drift(self, it: ChebIterate, lin: ChebLinearization) -> float:
+        """How far the flight drifts, at most and to first order, from the lift the vehicle
+        cannot leave unused: the rates' change from each point's lift vector to the one the
+        verification flies (its direction at the full share of its length, within the lift
+        range, with that share's drag), integrated over the flight, in trust units (1 km,
+        0.5 deg, 50 m/s, ...), the largest over the states."""
+        u = it.u
+        norm = np.hypot(u[:, 0], u[:, 1])
+        some = norm > 1e-12
+        safe = np.where(some, norm, 1.0)
+        lam = np.clip(norm, *self.lift_range)
+        flown = np.column_stack(
+            [lam * np.where(some, u[:, 0] / safe, 1.0), lam * np.where(some, u[:, 1] / safe, 0.0),
+             lam * lam]
+        )  # fmt: skip
+        change = np.abs(np.einsum("qjk,qk->qj", lin.B, flown - u))
+        total = np.zeros(6)
+        for s in range(self.segments.count):
+            ctrl = self.segments.controls_of(s)
+            total += 0.5 * float(it.T[s]) * (self.segments.quadrature(s) @ change[ctrl])
+        return float(np.max(total / self.units.y))
 
     def stalled(self, infeasibility: float, violation: float) -> str | None:
         """Why the run should stop when the sum of the scaled defects and excesses stayed within
@@ -470,6 +546,17 @@ class ChebScvx:
         )
 
     # -- costs ------------------------------------------------------------------------
+    def plain_objective(self, it: ChebIterate, lin: ChebLinearization) -> float:
+        """The problem's own objective in the subproblem's units on ``it``, without the
+        tie-breakers."""
+        st = self.setup
+        value = st.objective_time * float(np.sum(it.T))
+        for j, w in st.objective_state.items():
+            value += w * float(it.y[-1, j])
+        if st.objective_heat:
+            value += st.objective_heat * self._heat_load(it, lin)
+        return value
+
     def objective(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """The objective in the subproblem's units on ``it``."""
         st = self.setup
@@ -485,7 +572,7 @@ class ChebScvx:
             value += w * float(it.y[-1, j])
         if st.objective_heat:
             value += st.objective_heat * self._heat_load(it, lin)
-        return value
+        return value + smoothing(st, it.u, self.cols.scale if self.cols else 1.0)
 
     def _heat_load(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """Integral of the heat rate (W/m^2 x nondimensional time), Clenshaw-Curtis."""
@@ -523,6 +610,9 @@ class ChebScvx:
                 it.y[w.point, PH] - w.latitude, w.lon_factor * (it.y[w.point, TH] - w.longitude)
             )
             parts.append((f"waypoint {k}", np.array([max(d - w.radius, 0.0) / ZONE_UNIT])))
+        if self.setup.on_manifold:
+            gap = it.u[:, 2] - it.u[:, 0] ** 2 - it.u[:, 1] ** 2
+            parts.append(("the lift vector's length (u3 = u1^2 + u2^2)", np.abs(gap) / GAP_UNIT))
         last = it.y[-1]
         names = dict(POINT_MASS.terminal_states())
         for t in self.setup.terminal:
@@ -542,7 +632,13 @@ class ChebScvx:
 
     def penalized(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """Objective + weight x the L1 norm of the defects and excesses (the merit function)."""
-        return self.objective(it, lin) + self.merit_weight * float(np.sum(self.violations(it, lin)))
+        value = self.objective(it, lin) + self.merit_weight * float(
+            np.sum(self.violations(it, lin))
+        )
+        if self.objective_bound is not None and self.cols is not None:
+            excess = self.plain_objective(it, lin) - self.objective_bound
+            value += self.merit_weight * max(excess, 0.0) / (BOUND_UNIT * self.cols.scale)
+        return value
 
     # -- results ----------------------------------------------------------------------
     def term_values(self, it: ChebIterate, lin: ChebLinearization) -> dict[str, float]:
@@ -626,4 +722,6 @@ def run(problem: EntryProblem, options: ChebScvxOptions, **hooks: Unpack[RunHook
     """Run paper 001's Chebyshev SCvx on ``problem`` with its ``options`` (an optimized angle of
     attack flown as a lift share)."""
     flown = share_problem(problem)
-    return run_method(lambda: ChebScvx(flown, options, problem.planet_model), options, hooks)
+    return run_method(
+        lambda: ChebScvx(flown, options, problem.planet_model, problem), options, hooks
+    )

@@ -38,6 +38,11 @@ tolerance; this makes the optimum unique at a cost far below the objective's res
 ratio test reads only the linear model. Measured against the objective, not fixed: a fixed weight
 that suits minimum time (10 per 10 s) damped a final-latitude objective (0.5 per 0.5 deg) into a
 creep that stopped 1.1 % short on the heat-limited Shuttle."""
+BOUND_UNIT = 1.0e-3
+"""Unit of the objective bound's slack on the manifold, per unit of the objective's largest
+coefficient per scaled unit (``regularization_scale``): 1e-3 of a scaled unit."""
+GAP_UNIT = 0.01
+"""Unit of the lift manifold's slack: 1 % of the lift share squared (u3 - u1^2 - u2^2)."""
 ZONE_WINDOW = math.radians(2.0)
 """A zone's rows are added where the reference is closer than the trust box's reach plus this."""
 
@@ -89,6 +94,9 @@ class Setup:
     lift_weight: float = 0.0  # per unit of the integral of u3 over tau (a polar's)
     unused_lift_weight: float = 0.0  # per point and unit of 1 - |(u1, u2)| (u3 fixed)
     bank_rate_max: float | None = None  # rad per nondimensional time
+    on_manifold: bool = False  # the lift vector on u3 = u1^2 + u2^2 (linearized), not the cone
+    smooth_weight: float = 0.0  # on the manifold: per unit of sum |u_k+1 - u_k|^2 (x scale)
+    objective_room: float | None = None  # on the manifold: the bound less the reference's value
 
     @property
     def fixed_lift(self) -> bool:
@@ -109,6 +117,8 @@ class Columns:
     path_points: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     path_limits: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     slack_names: list[str] = field(default_factory=list)
+    scale: float = 1.0
+    """The objective's largest coefficient per scaled unit (``regularization_scale``)."""
     terminal_rows: int = 0
     """The first of the terminal bounds' rows (two per bound, upper then lower) in the
     nonnegative block: their multipliers weigh the merit (``method.merit_weight_of``)."""
@@ -180,6 +190,10 @@ def build(
         else np.zeros(0, dtype=np.int64)
     )
     n_slack = pts.size + 2 * rate_pts.size + zone_rows + len(setup.waypoints) + len(setup.terminal)
+    if setup.on_manifold:
+        n_slack += Q
+    if setup.objective_room is not None:
+        n_slack += 1
     cy, cu, ct = 0, 6 * P, 6 * P + 3 * Q
     cnu = ct + S
     cs = cnu + 12 * (P - 1)
@@ -338,6 +352,25 @@ def build(
         )
         soc_dims.append(3)
         slack += 1
+    # on the lift manifold: |gap + grad . d| / unit <= s, the gap u3 - u1^2 - u2^2 linearized
+    # (before the terminal slacks, whose rows the merit weight reads last)
+    if setup.on_manifold:
+        gap = ref.u[:, 2] - ref.u[:, 0] ** 2 - ref.u[:, 1] ** 2
+        g1 = -2.0 * ref.u[:, 0] * un.u[0] / GAP_UNIT
+        g2 = -2.0 * ref.u[:, 1] * un.u[1] / GAP_UNIT
+        g3 = np.full(Q, un.u[2] / GAP_UNIT)
+        both = np.concatenate([iq, iq + Q])
+        nonneg.add(
+            np.concatenate([-gap, gap]) / GAP_UNIT,
+            (both, np.tile(uc[:, 0], 2), np.concatenate([g1, -g1])),
+            (both, np.tile(uc[:, 1], 2), np.concatenate([g2, -g2])),
+            (both, np.tile(uc[:, 2], 2), np.concatenate([g3, -g3])),
+            (both, slack + np.tile(iq, 2), -1.0),
+        )
+        slack += Q
+    bound_slack = slack  # the objective's bound: its row once the objective is built
+    if setup.objective_room is not None:
+        slack += 1
     # terminal bounds on the last point, relaxed: (y - hi)/unit <= s, (lo - y)/unit <= s
     cols.terminal_rows = nonneg.m
     last = P - 1
@@ -351,7 +384,7 @@ def build(
         )
         slack += 1
     # the relaxed lift cone (eq. 34): |(2 u1, 2 u2, u3 - 1)| <= u3 + 1
-    for qi in range(Q):
+    for qi in range(0 if setup.on_manifold else Q):
         socs.add(
             np.array([u3[qi] + 1.0, 2.0 * u1[qi], 2.0 * u2[qi], u3[qi] - 1.0]),
             (np.array([0, 3]), uc[qi, 2], -un.u[2]),
@@ -390,12 +423,40 @@ def build(
             objective[uc[ctrl, 2]] += w * ref.T[s] * lin.heat_u3[ctrl] * un.u[2]
             objective[ct + s] += float(w @ lin.heat[ctrl]) * un.t
     q += objective
+    scale = regularization_scale(objective)
+    cols.scale = scale
+    if setup.objective_room is not None:
+        # the objective no worse than its bound: (room - objective . x) / unit + s >= 0
+        on = np.flatnonzero(objective)
+        unit = BOUND_UNIT * scale
+        nonneg.add(
+            np.array([setup.objective_room / unit]),
+            (np.zeros(on.size), on, objective[on] / unit),
+            (0, bound_slack, -1.0),
+        )
     A, b = _stack([zero, nonneg, socs], n)
     cones = ConeSpec(zero.m, nonneg.m, tuple(soc_dims))
     diagonal = np.zeros(n)
-    diagonal[:cnu] = STEP_REGULARIZATION * regularization_scale(objective)
+    diagonal[:cnu] = STEP_REGULARIZATION * scale
     P = sp.diags(diagonal, format="csc")
+    if setup.on_manifold and setup.smooth_weight:
+        # w |du_r + un D d|^2 per component: 2 w un^2 D'D in P, 2 w un D' du_r in q
+        smooth = setup.smooth_weight * scale
+        D = sp.diags([-np.ones(Q - 1), np.ones(Q - 1)], [0, 1], shape=(Q - 1, Q), format="csc")
+        for c in range(3):
+            sel = sp.csc_matrix((np.ones(Q), (np.arange(Q), uc[:, c])), shape=(Q, n))
+            B = un.u[c] * (D @ sel)
+            P = P + 2.0 * smooth * (B.T @ B)
+            q += 2.0 * smooth * (B.T @ np.diff(ref.u[:, c]))
+        P = sp.triu(P, format="csc")
     return ConeProblem(P, q, A, b, cones), cols
+
+
+def smoothing(setup: Setup, u: Array, scale: float) -> float:
+    """The manifold phase's smoothing term on lift vectors ``u`` (Q, 3), 0 off it."""
+    if not (setup.on_manifold and setup.smooth_weight):
+        return 0.0
+    return setup.smooth_weight * scale * float(np.sum(np.diff(u, axis=0) ** 2))
 
 
 def regularization_scale(objective: Array) -> float:
