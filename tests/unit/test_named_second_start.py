@@ -78,7 +78,11 @@ def test_the_better_of_two_runs_is_kept_with_both_in_the_result() -> None:
 def test_a_failed_second_run_keeps_the_first_answer_and_says_so() -> None:
     first = _result("succeeded", 5.17e8, 3, SKIPPING)
     result = with_second_start(
-        _document({}), first, lambda d, **h: _result("failed", 6e8, 4, SKIPPING), {}, 0.0
+        _document({}),
+        first,
+        lambda d, **h: _result("failed", 6e8, 4, SKIPPING),
+        {},
+        time.process_time(),
     )
     assert result["objective"]["value"] == 5.17e8 and result["status"] == "succeeded"
     assert [a["kept"] for a in result["attempts"]] == [True, False]
