@@ -406,7 +406,6 @@ class ChebScvx:
                 ],
                 "final_time_change_s": float(np.sum(dT)) * sc.time_s,
                 "second_order_correction": corrected,
-                "unflown_drift": self.unflown_drift(new, lin) if gap > GAP_SWITCH else 0.0,
                 "regularized_retry": self.retried,
                 **({"lift_law": self.law} if self.law != "polar" else {}),
             },
@@ -474,7 +473,7 @@ class ChebScvx:
             and self.options.lift_manifold
             and not self.setup.on_manifold
             and record.relaxation_gap > GAP_SWITCH
-            and self.unflown_drift(proposal.reference, pend.lin) > DRIFT_SWITCH
+            and self._drifts(proposal.reference, pend.lin, record)
             and not self.flies(proposal.reference, record)
         ):
             # converged with the relaxed cone slack: go on with the lift vector on its
@@ -503,6 +502,12 @@ class ChebScvx:
             feasible = False
         record.extra["relaxed_answer_flies"] = feasible
         return feasible
+
+    def _drifts(self, it: ChebIterate, lin: ChebLinearization, record: IterationRecord) -> bool:
+        """Whether the unflown lift could move the flight (``DRIFT_SWITCH``; recorded)."""
+        drift = self.unflown_drift(it, lin)
+        record.extra["unflown_drift"] = drift
+        return drift > DRIFT_SWITCH
 
     def unflown_drift(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """How far the flight drifts, at most and to first order, from the lift the vehicle
@@ -558,9 +563,10 @@ class ChebScvx:
         return value
 
     def objective(self, it: ChebIterate, lin: ChebLinearization) -> float:
-        """The objective in the subproblem's units on ``it``."""
+        """The objective in the subproblem's units on ``it``: the problem's own and the
+        tie-breakers (induced drag, unused lift, the manifold's smoothing)."""
         st = self.setup
-        value = st.objective_time * float(np.sum(it.T))
+        value = self.plain_objective(it, lin)
         if st.lift_weight and not st.fixed_lift:
             for s in range(self.segments.count):
                 ctrl = self.segments.controls_of(s)
@@ -568,10 +574,6 @@ class ChebScvx:
         if st.unused_lift_weight and st.fixed_lift:
             unused = 1.0 - np.hypot(it.u[:, 0], it.u[:, 1])
             value += st.unused_lift_weight * float(np.sum(unused))
-        for j, w in st.objective_state.items():
-            value += w * float(it.y[-1, j])
-        if st.objective_heat:
-            value += st.objective_heat * self._heat_load(it, lin)
         return value + smoothing(st, it.u, self.cols.scale if self.cols else 1.0)
 
     def _heat_load(self, it: ChebIterate, lin: ChebLinearization) -> float:
