@@ -123,20 +123,23 @@ class ChebScvxOptions(ScpRunOptions):
     )
     lift_manifold: bool = Field(
         True,
-        description="A run that converges with the relaxed cone slack somewhere (u3 - u1^2 - "
-        "u2^2 above 1e-3: lift the vehicle cannot leave unused) goes on with the lift vector "
-        "on u3 = u1^2 + u2^2, linearized at each reference and held by a penalized slack, so "
-        "that its answer is one the vehicle flies; false: the relaxation alone (the paper).",
+        description="A run that converges to controls that do not fly as planned, with the "
+        "relaxed cone slack somewhere (u3 - u1^2 - u2^2 above 1e-3: lift the vehicle cannot "
+        "leave unused), goes on with the lift vector on u3 = u1^2 + u2^2, linearized at each "
+        "reference and held by a penalized slack, so that its answer is one the vehicle flies; "
+        "false: the relaxation alone (and weight_lift_smoothing 0: the paper's run).",
     )
     weight_lift_smoothing: float = Field(
         10.0,
         ge=0.0,
-        description="On the lift manifold: the weight of the sum of the squared changes of the "
-        "lift vector between neighbouring points, per unit of the objective's largest "
-        "coefficient per scaled unit. Where the objective is indifferent to how the vehicle "
-        "sheds energy (a terminal speed held by the dynamic-pressure limit at the terminal "
-        "altitude) it picks a smooth bank among the equal answers; the relaxed optimum's "
-        "objective is held as a bound (an exact penalty), so it only breaks ties; 0: none.",
+        description="A run that converges to controls that do not fly as planned goes on with "
+        "the sum of the squared changes of the lift vector between neighbouring points in the "
+        "objective, this weight per unit of the objective's largest coefficient per scaled "
+        "unit on the lift manifold, a tenth of it off the manifold (a tight cone). Where the "
+        "objective is indifferent to how the vehicle sheds energy (a terminal speed held by "
+        "the dynamic-pressure limit at the terminal altitude, a bank whose side does not "
+        "matter) it picks a smooth bank among the equal answers; the converged objective is "
+        "held as a bound (an exact penalty), so it only breaks ties; 0: none.",
     )
     path_margin: float = Field(
         0.02,

@@ -65,6 +65,11 @@ class MethodResult:
     """One summary per start of a multi-start run (``run_starts``); None for a single start."""
     final_record: IterationRecord | None = None
     """The kept start's last iteration when the history holds several starts."""
+    verification: dict[str, Any] | None = None
+    """The verification report of ``trajectory`` when the method already flew it (the problem it
+    was given, the same controls): the caller reuses it instead of flying it again."""
+    verification_s: float = 0.0
+    """Wall seconds the method spent on ``verification``."""
 
     @property
     def last_record(self) -> IterationRecord | None:
@@ -125,9 +130,15 @@ def run_method(
         offset=offset,
     )
     ref = outcome.reference
+    # a method that verified its last reference on the way hands the report on (optional hook)
+    hook: Callable[[Ref], tuple[dict[str, Any], float] | None] | None
+    hook = getattr(method, "flown_report", None)
+    flown = hook(ref) if hook is not None and ref is not None else None
     return MethodResult(
         status=outcome.status,
         trajectory=method.trajectory(ref) if ref is not None and outcome.history else None,
+        verification=flown[0] if flown is not None else None,
+        verification_s=flown[1] if flown is not None else 0.0,
         history=outcome.history,
         conic_solve_s=outcome.conic_solve_s,
         objective_terms=method.objective_terms(outcome),

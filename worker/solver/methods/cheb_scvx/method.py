@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from dataclasses import dataclass
 from typing import Any, Unpack
 
@@ -82,6 +83,9 @@ on with the lift vector on its manifold (``Setup.on_manifold``)."""
 DRIFT_SWITCH = 0.2
 """... and whose unflown lift would move the flight by more than this (trust units:
 ``ChebScvx.unflown_drift``): a slack cone where the air is too thin to matter flies as planned."""
+RELAXED_SMOOTHING = 0.1
+"""Off the manifold, the tie-breaking smoothing's share of ``weight_lift_smoothing``: at the
+full weight it would rather leave lift unused (a flight the vehicle cannot fly) than turn it."""
 FEASIBLE = 1.0e-3
 """Largest defect or slack (scaled units: 1 km, 0.5 deg, 50 m/s ..., 1 % of a limit) of a
 reference that may be called converged."""
@@ -172,6 +176,8 @@ class ChebScvx:
         self._limit = 0.0
         self._problem: ConeProblem | None = None
         self.retried = False
+        self.flown: tuple[ChebIterate, dict[str, Any] | None, float] | None = None
+        """The reference ``flies`` flew last, its verification report and wall seconds."""
         self.extra: dict[str, Any] = {
             "legs": self.segments.leg_count,
             "intervals": self.segments.count,
@@ -468,22 +474,9 @@ class ChebScvx:
             stalled = f"{stalled}, the largest at {largest}"
             record.extra["infeasibility_stalled"] = True
         small = pend.small
-        if (
-            small
-            and self.options.lift_manifold
-            and not self.setup.on_manifold
-            and record.relaxation_gap > GAP_SWITCH
-            and self._drifts(proposal.reference, pend.lin, record)
-            and not self.flies(proposal.reference, record)
-        ):
-            # converged with the relaxed cone slack: go on with the lift vector on its
-            # manifold, linearized, so that the answer is one the vehicle can fly
-            self.setup.on_manifold, small, stalled = True, False, None
-            self.setup.smooth_weight = self.options.weight_lift_smoothing
-            # the relaxation's optimum bounds the objective: the smoothing only breaks ties
-            self.objective_bound = self.plain_objective(proposal.reference, pend.lin)
+        if small and self.objective_bound is None and self._breaks_ties(pend.lin, proposal, record):
+            small, stalled = False, None  # converged, unflyable: the tie-breaking phase
             self.infeasibility_trail.clear()
-            record.extra["lift_manifold"] = True
         return scp.Judgement(
             True,
             small=small,
@@ -492,16 +485,50 @@ class ChebScvx:
             stalled=stalled,
         )
 
+    def _breaks_ties(
+        self, lin: ChebLinearization, proposal: scp.Proposal[ChebIterate], record: IterationRecord
+    ) -> bool:
+        """Whether a converged answer goes on in the tie-breaking phase: when its controls do
+        not fly as planned, the lift vector is smoothed and the objective held at its converged
+        value by an exact penalty (so that the smoothing only picks among equal answers); where
+        the relaxed cone is slack and its unflown lift would move the flight, the lift vector
+        also goes on its manifold (at the full smoothing weight, else at ``RELAXED_SMOOTHING``
+        of it, below what the unused lift's weight holds)."""
+        it, smooth = proposal.reference, self.options.weight_lift_smoothing
+        manifold = (
+            self.options.lift_manifold
+            and record.relaxation_gap > GAP_SWITCH
+            and self._drifts(it, lin, record)
+        )
+        if not (manifold or smooth) or self.flies(it, record):
+            return False
+        self.setup.on_manifold = manifold
+        self.setup.smooth_weight = smooth if manifold else RELAXED_SMOOTHING * smooth
+        # the converged objective bounds the phase's: the smoothing only breaks ties
+        self.objective_bound = self.plain_objective(it, lin)
+        record.extra["lift_manifold"] = manifold
+        record.extra["lift_smoothing"] = self.setup.smooth_weight
+        return True
+
     def flies(self, it: ChebIterate, record: IterationRecord) -> bool:
         """Whether ``it``'s controls, flown through the full dynamics as the result's
         verification flies them, meet the problem (recorded as ``relaxed_answer_flies``)."""
+        start = time.perf_counter()
         try:
             report = verify(self.verified, self.trajectory(it))
-            feasible = bool(report["feasible"])
         except (ValueError, FloatingPointError, ArithmeticError):
-            feasible = False
+            report = None
+        self.flown = (it, report, time.perf_counter() - start)
+        feasible = report is not None and bool(report["feasible"])
         record.extra["relaxed_answer_flies"] = feasible
         return feasible
+
+    def flown_report(self, reference: ChebIterate) -> tuple[dict[str, Any], float] | None:
+        """The verification report of ``reference`` and its wall seconds when ``flies`` flew it
+        (the run's last converged answer), for the result: it is not flown twice."""
+        if self.flown is None or self.flown[0] is not reference or self.flown[1] is None:
+            return None
+        return self.flown[1], self.flown[2]
 
     def _drifts(self, it: ChebIterate, lin: ChebLinearization, record: IterationRecord) -> bool:
         """Whether the unflown lift could move the flight (``DRIFT_SWITCH``; recorded)."""

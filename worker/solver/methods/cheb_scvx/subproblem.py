@@ -95,8 +95,8 @@ class Setup:
     unused_lift_weight: float = 0.0  # per point and unit of 1 - |(u1, u2)| (u3 fixed)
     bank_rate_max: float | None = None  # rad per nondimensional time
     on_manifold: bool = False  # the lift vector on u3 = u1^2 + u2^2 (linearized), not the cone
-    smooth_weight: float = 0.0  # on the manifold: per unit of sum |u_k+1 - u_k|^2 (x scale)
-    objective_room: float | None = None  # on the manifold: the bound less the reference's value
+    smooth_weight: float = 0.0  # tie-breaking: per unit of sum |u_k+1 - u_k|^2 (x scale)
+    objective_room: float | None = None  # tie-breaking: the bound less the reference's value
 
     @property
     def fixed_lift(self) -> bool:
@@ -439,7 +439,7 @@ def build(
     diagonal = np.zeros(n)
     diagonal[:cnu] = STEP_REGULARIZATION * scale
     P = sp.diags(diagonal, format="csc")
-    if setup.on_manifold and setup.smooth_weight:
+    if setup.smooth_weight:
         # w |du_r + un D d|^2 per component: 2 w un^2 D'D in P, 2 w un D' du_r in q
         smooth = setup.smooth_weight * scale
         D = sp.diags([-np.ones(Q - 1), np.ones(Q - 1)], [0, 1], shape=(Q - 1, Q), format="csc")
@@ -453,8 +453,8 @@ def build(
 
 
 def smoothing(setup: Setup, u: Array, scale: float) -> float:
-    """The manifold phase's smoothing term on lift vectors ``u`` (Q, 3), 0 off it."""
-    if not (setup.on_manifold and setup.smooth_weight):
+    """The tie-breaking phase's smoothing term on lift vectors ``u`` (Q, 3), 0 before it."""
+    if not setup.smooth_weight:
         return 0.0
     return setup.smooth_weight * scale * float(np.sum(np.diff(u, axis=0) ** 2))
 
