@@ -378,17 +378,26 @@ class HpScp:
         return abs(old - new) <= tol.relative_cost * max(abs(new), 1.0)
 
     def _build(
-        self, reference: HpIterate, linearization: Linearization, *, hold_time: bool
+        self,
+        reference: HpIterate,
+        linearization: Linearization,
+        *,
+        hold_time: bool,
+        restoring: bool = False,
     ) -> tuple[ConeProblem, Columns]:
-        """The subproblem about ``reference`` with this iteration's weights and regions."""
+        """The subproblem about ``reference`` with this iteration's weights and regions;
+        ``restoring``: without the objective (a correction's step back onto the constraints)."""
         assert self.objective is not None
+        objective = self.objective
+        if restoring:
+            objective = ObjectiveWeights(0.0, np.zeros_like(objective.final))
         return build(
             self.problem,
             reference,
             linearization,
             self.units,
             self.terminal,
-            self.objective,
+            objective,
             weight_virtual=self.w_vc,
             weight_trust=self._trust_weight(),
             tf_min=0.05 * self.tf_guess,
@@ -435,8 +444,9 @@ class HpScp:
     ) -> tuple[HpIterate, Linearization, int]:
         """Second-order corrections of a step (Nocedal & Wright, Numerical Optimization, sec.
         18.3; against the Maratos effect of the exact L1 penalty, which would reject the
-        tangential steps whose defects are second order): re-solve the subproblem about the
-        candidate with the final time held, keep it while the penalized cost falls."""
+        tangential steps whose defects are second order): the shortest step (the trust
+        penalty's) onto the constraints linearized about the candidate, with the final time
+        held and without the objective's pull, kept while the penalized cost falls."""
         assert self.objective is not None
         passes = 0
         for _ in range(self.options.second_order_corrections):
@@ -444,7 +454,7 @@ class HpScp:
                 break
             if self._defect(candidate) <= self.options.defect_tolerance:
                 break
-            problem, cols = self._build(new, candidate, hold_time=True)
+            problem, cols = self._build(new, candidate, hold_time=True, restoring=True)
             solution = self._conic(problem, self._limit)
             self.correction_s += solution.solve_time_s
             if not solution.status.usable or solution.x is None:
