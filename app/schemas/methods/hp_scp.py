@@ -83,10 +83,13 @@ class HpScpOptions(ScpRunOptions):
         "terminal altitude (or speed).",
     )
     guess: Literal["propagated", "linear"] = Field(
-        "propagated",
-        description="Initial reference: the constant-control flight (paper 003's stage 1), or "
-        "each state with a terminal target straight from its initial value to the target over "
-        "the guessed flight time.",
+        "linear",
+        description="Initial reference: each state with a terminal target straight from its "
+        "initial value to the target over the guessed flight time (the constant-control "
+        "flight's), the other states and the attitude as that flight flies them; or the "
+        "constant-control flight itself (paper 003's stage 1, which its own case pins). The "
+        "constant-control flight can pass the target high and fast, a start the iterations "
+        'may not leave (docs/methods/hp-scp.md, "Guess").',
     )
     hold_final_time: bool = Field(
         True,
