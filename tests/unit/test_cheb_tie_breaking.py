@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 from app.schemas import ProblemDocument
 from app.schemas.methods import ChebScvxOptions
@@ -27,11 +28,16 @@ from worker.solver.verification import verify
 SUITE = Path(__file__).resolve().parents[2] / "bench" / "user_problems" / "data"
 
 
-def test_a_slack_cone_goes_on_to_the_manifold_and_flies() -> None:
-    (path,) = SUITE.glob("086-*.json")
+def solved(prefix: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The suite problem's record and its cheb-scvx result with the method's defaults."""
+    (path,) = SUITE.glob(f"{prefix}-*.json")
     record = json.loads(path.read_text())
     document = {**record["problem"], "method": {"name": "cheb-scvx"}}
-    result = solve_problem(ProblemDocument.model_validate(document))
+    return record, solve_problem(ProblemDocument.model_validate(document))
+
+
+def test_a_slack_cone_goes_on_to_the_manifold_and_flies() -> None:
+    record, result = solved("086")
     history = result["history"]
     switched = [r["iteration"] for r in history if r["extra"].get("lift_manifold")]
     assert len(switched) == 1, switched
@@ -49,10 +55,7 @@ def test_a_slack_cone_goes_on_to_the_manifold_and_flies() -> None:
 
 
 def test_a_tight_cone_whose_bank_flips_is_smoothed_and_flies() -> None:
-    (path,) = SUITE.glob("069-*.json")
-    record = json.loads(path.read_text())
-    document = {**record["problem"], "method": {"name": "cheb-scvx"}}
-    result = solve_problem(ProblemDocument.model_validate(document))
+    record, result = solved("069")
     history = result["history"]
     switched = [r for r in history if "lift_smoothing" in r["extra"]]
     assert len(switched) == 1, [r["iteration"] for r in switched]

@@ -168,7 +168,7 @@ class ChebScvx:
         self.merit_weight = options.weight_virtual_control
         """The L1 penalty weight of the ratio test's merit (``merit_weight_of``)."""
         self.objective_bound: float | None = None
-        """On the lift manifold: the relaxed optimum's objective, which the answer keeps."""
+        """In the tie-breaking phase: the converged objective, which the answer keeps."""
         self.infeasibility_trail: list[float] = []
         """The sum of the scaled violations of each accepted candidate, in order (``stalled``)."""
         self._order = self._collocation_order()
@@ -591,7 +591,7 @@ class ChebScvx:
 
     def objective(self, it: ChebIterate, lin: ChebLinearization) -> float:
         """The objective in the subproblem's units on ``it``: the problem's own and the
-        tie-breakers (induced drag, unused lift, the manifold's smoothing)."""
+        tie-breakers (induced drag, unused lift, the tie-breaking phase's smoothing)."""
         st = self.setup
         value = self.plain_objective(it, lin)
         if st.lift_weight and not st.fixed_lift:

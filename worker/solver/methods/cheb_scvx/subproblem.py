@@ -39,8 +39,8 @@ ratio test reads only the linear model. Measured against the objective, not fixe
 that suits minimum time (10 per 10 s) damped a final-latitude objective (0.5 per 0.5 deg) into a
 creep that stopped 1.1 % short on the heat-limited Shuttle."""
 BOUND_UNIT = 1.0e-3
-"""Unit of the objective bound's slack on the manifold, per unit of the objective's largest
-coefficient per scaled unit (``regularization_scale``): 1e-3 of a scaled unit."""
+"""Unit of the objective bound's slack in the tie-breaking phase, per unit of the objective's
+largest coefficient per scaled unit (``regularization_scale``): 1e-3 of a scaled unit."""
 GAP_UNIT = 0.01
 """Unit of the lift manifold's slack: 1 % of the lift share squared (u3 - u1^2 - u2^2)."""
 ZONE_WINDOW = math.radians(2.0)
