@@ -3,8 +3,8 @@
 Paper 000 keeps its trust-region weight fixed; the energy method holds it for the first
 iterations and then relaxes it (``RelaxingTrustWeight``; a factor of 1 keeps the paper's); the
 time-domain method adapts it to the defect of each step (``DefectTrustWeight``: paper 002 keeps
-it fixed, which stalls or wanders on other problems). Further strategies (a line search or
-filter, paper 003; the SCvx ratio test, paper 001) go here beside them.
+it fixed, which stalls or wanders on other problems). Beside them: the SCvx ratio test
+(``scp.ratio``), paper 003's filter (``scp.filter``) and quadratic penalty (``scp.penalty``).
 """
 
 from __future__ import annotations

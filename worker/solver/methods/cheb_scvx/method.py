@@ -62,6 +62,7 @@ from worker.solver.objective_weights import term_pulls
 from worker.solver.problem import EntryProblem
 from worker.solver.scp import loop as scp
 from worker.solver.scp.history import IterationRecord, solver_fields
+from worker.solver.scp.ratio import RatioThresholds, TrustRegion, Verdict, step_ratio
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.verification import verify
 
@@ -72,7 +73,7 @@ FINAL_TIME_UNIT_S = 10.0
 """Unit of the scaled segment-duration changes (s)."""
 HEAT_LOAD_UNIT = 1.0e6
 """Unit of the heat-load objective term (J/m^2)."""
-RATIO_REJECT, RATIO_SHRINK, RATIO_GROW = 0.0, 0.25, 0.7
+RATIO = RatioThresholds(reject=0.0, shrink=0.25, grow=0.7)
 """SCvx's ratio thresholds: reject below the first, shrink the box below the second, grow it
 above the third (Mao, Szmuk & Acikmese 2016, Algorithm 1)."""
 RADIUS_MAX, RADIUS_MIN = 4.0, 1.0e-6
@@ -155,7 +156,8 @@ class ChebScvx:
                 [tr.final_time_s / sc.time_s / self.units.t],
             ]
         )
-        self.radius = 1.0
+        self.trust = TrustRegion(1.0, RADIUS_MIN, RADIUS_MAX)
+        """The trust box's scale (a radius against ``box``)."""
         self.tol = POINT_MASS.deltas_from_si(options.stop_tolerance, sc)
         self.tol_t = options.stop_tolerance.final_time_s / sc.time_s
         limits = len(active_limits(problem))
@@ -292,7 +294,7 @@ class ChebScvx:
             reference,
             linearization,
             self.path_set,
-            self.box * self.radius,
+            self.box * self.trust.size,
             self.rate_set,
         )
         self.q = problem.q
@@ -369,7 +371,7 @@ class ChebScvx:
         new, lin, cost = self._candidate(reference, x)
         predicted = self.model_cost(reference, linearization, x)
         corrected = False
-        if self.ref_cost - cost < RATIO_SHRINK * (self.ref_cost - predicted):
+        if self.ref_cost - cost < RATIO.shrink * (self.ref_cost - predicted):
             x2 = self._second_order(reference, x, lin)
             if x2 is not None:
                 new2, lin2, cost2 = self._candidate(reference, x2)
@@ -393,14 +395,14 @@ class ChebScvx:
             cost_terms={**terms, "final_time_s": float(np.sum(new.T)) * sc.time_s},
             objective_value=None,
             max_state_change=POINT_MASS.deltas_to_si(change, sc),
-            trust_region_slack=float(self.radius),
+            trust_region_slack=float(self.trust.size),
             virtual_control_norm=float(np.sum(np.abs(x[self.cols.nu : self.cols.slack]))),
             linearization_error=float(np.max(np.abs(lin.defects) / self.units.y)),
             nodes_post_corrected=0,
             relaxation_gap=gap,
             subproblem_cost=predicted,
             extra={
-                "trust_radius": self.radius,
+                "trust_radius": self.trust.size,
                 "path_points": int(np.count_nonzero(self.path_set.any(axis=1))),
                 "path_rows": int(np.count_nonzero(self.path_set)),
                 "bank_rate_points": int(np.count_nonzero(self.rate_set)),
@@ -449,22 +451,18 @@ class ChebScvx:
         """SCvx's ratio test and trust-box update."""
         pend = self.pending
         assert pend is not None and self.ref_cost is not None
-        predicted = self.ref_cost - pend.predicted
-        actual = self.ref_cost - pend.cost
-        scale = max(1.0, abs(self.ref_cost))
+        ratio = step_ratio(self.ref_cost, pend.cost, pend.predicted, STATIONARY)
         record = proposal.record
-        ratio = 1.0 if predicted <= STATIONARY * scale else actual / predicted
-        record.extra["ratio"] = ratio
-        record.extra["predicted_decrease"] = predicted
-        record.extra["actual_decrease"] = actual
-        if ratio < RATIO_REJECT:  # a stationary reference's ratio is 1: never rejected
-            self.radius = max(self.radius / 2.0, RADIUS_MIN)
+        record.extra.update(ratio.describe())
+        verdict = RATIO.verdict(ratio.value)
+        if verdict is Verdict.REJECT:  # a stationary reference's ratio is 1: never rejected
+            self.trust.shorten()
             record.extra["accepted"] = False
             return scp.Judgement(False)
-        if ratio < RATIO_SHRINK:
-            self.radius = max(self.radius / 2.0, RADIUS_MIN)
-        elif ratio > RATIO_GROW:
-            self.radius = min(self.radius * 2.0, RADIUS_MAX)
+        if verdict is Verdict.SHRINK:
+            self.trust.shorten()
+        elif verdict is Verdict.GROW:
+            self.trust.lengthen()
         record.extra["accepted"] = True
         stalled = self.stalled(
             float(record.extra["infeasibility"]), float(record.extra["violation_sum"])

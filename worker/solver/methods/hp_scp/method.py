@@ -55,6 +55,7 @@ from worker.solver.scp import loop as scp
 from worker.solver.scp.filter import NonMonotoneFilter
 from worker.solver.scp.history import IterationRecord, solver_fields
 from worker.solver.scp.penalty import VariableQuadraticPenalty
+from worker.solver.scp.ratio import RatioThresholds, TrustRegion, Verdict, step_ratio
 from worker.solver.trajectory import OptimizedTrajectory
 from worker.solver.transcription.cgl import ChebyshevMesh
 from worker.solver.transcription.cgl_collocation import CollocationPattern, PolynomialAttitude
@@ -69,12 +70,15 @@ FINAL_TIME_UNIT_S = 10.0
 """Unit of the scaled final-time change (s)."""
 RATE_UNIT_DEG_S = 1.0
 """Unit of the scaled bank- and alpha-rate changes (deg/s)."""
-RATIO_REJECT, RATIO_GOOD = 0.1, 0.75
-"""Ratio test (SCvx): below the first the step is rejected, above the second the trust weight
-is halved; in between it is kept."""
+RATIO = RatioThresholds(reject=0.1, shrink=0.1, grow=0.75)
+"""Ratio test (SCvx): below ``reject`` the step is rejected, above ``grow`` the trust weight is
+halved; in between it is kept."""
 RATIO_EXACT, LIGHTEN_EXACT = 0.1, 0.25
 """A ratio within RATIO_EXACT of 1 (the model predicted the decrease) divides the trust weight
-by 4 instead of 2."""
+by 1 / LIGHTEN_EXACT (4) instead of 2."""
+PREDICTED_FLOOR = 1.0e-12
+"""A predicted decrease at most this share of the penalized cost gives ratio 1 (nothing to
+judge the step by)."""
 STALL_RELATIVE = 1.0e-6
 """A predicted decrease below this share of the penalized cost, with the step rejected, means
 the reference is stationary on its mesh."""
@@ -133,7 +137,7 @@ class _Pending:
 class HpState:
     """The ratio test's state: the trust weight and the reference's penalized cost."""
 
-    weight: float
+    trust: TrustRegion
     cost: float | None = None
 
 
@@ -158,7 +162,14 @@ class HpScp:
         )
         self.tol_z = ALPHA_BANK_STATE.deltas_from_si(options.stop_tolerance, sc)
         self.tol_t = options.stop_tolerance.final_time_s / sc.time_s
-        self.state = HpState(options.weight_trust_region)
+        self.state = HpState(
+            TrustRegion(
+                options.weight_trust_region,
+                options.weight_trust_region_min,
+                TRUST_WEIGHT_MAX,
+                penalty=True,
+            )
+        )
         self.w_vc = options.weight_virtual_control
         self.accepted_costs: list[float] = []
         self.probe = SettledProbe()
@@ -424,7 +435,7 @@ class HpScp:
         hard trust region, then the variable penalty)."""
         if self.options.globalization == "paper":
             return 0.0 if self.penalty.hard else self.penalty.weight
-        return self.state.weight
+        return self.state.trust.size
 
     def _boxed(self) -> bool:
         """Whether the hard trust region is in the subproblem."""
@@ -634,7 +645,7 @@ class HpScp:
             relaxation_gap=0.0,
             subproblem_cost=predicted,
             extra={
-                "trust_weight": self.state.weight,
+                "trust_weight": self.state.trust.size,
                 "virtual_weight": self.w_vc,
                 "mesh_intervals": reference.pattern.mesh.num_intervals,
                 "mesh_points": reference.pattern.mesh.num_points,
@@ -658,18 +669,18 @@ class HpScp:
         if self.options.globalization == "paper":
             return self._line_search(reference, proposal, pending)
         if not finite(pending.linearization):
-            state.weight = min(state.weight * 4.0, TRUST_WEIGHT_MAX)
+            state.trust.shorten(4.0)
             record.extra["rejected"] = "the step left the models' range"
             return scp.Judgement(accepted=False, linearization=None)
-        actual = state.cost - self.penalized(proposal.reference, pending.linearization)
-        predicted = state.cost - pending.predicted
-        ratio = actual / predicted if predicted > 1e-12 * max(1.0, abs(state.cost)) else 1.0
+        candidate = self.penalized(proposal.reference, pending.linearization)
+        step = step_ratio(state.cost, candidate, pending.predicted, PREDICTED_FLOOR)
+        ratio, predicted, verdict = step.value, step.predicted, RATIO.verdict(step.value)
         record.extra["ratio"] = ratio
         defect_ok = record.linearization_error <= self.options.defect_tolerance
         if self.options.acceptance == "always":
             return self._accept(proposal, pending, pending.small_step and defect_ok)
         if (
-            ratio < RATIO_REJECT
+            verdict is Verdict.REJECT
             and predicted <= STALL_RELATIVE * max(1.0, abs(state.cost))
             and self._defect(self.reference_linearization) <= self.options.defect_tolerance
         ):
@@ -679,26 +690,24 @@ class HpScp:
             proposal.reference = reference
             pending.linearization = self.reference_linearization
             return self._accept(proposal, pending, True)
-        if ratio < RATIO_REJECT and not (pending.small_step and defect_ok):
-            state.weight = min(state.weight * 2.0, TRUST_WEIGHT_MAX)
-            record.extra["rejected"] = f"ratio {ratio:.3g} below {RATIO_REJECT}"
+        if verdict is Verdict.REJECT and not (pending.small_step and defect_ok):
+            state.trust.shorten()
+            record.extra["rejected"] = f"ratio {ratio:.3g} below {RATIO.reject}"
             return scp.Judgement(accepted=False, linearization=None)
-        if ratio > RATIO_GOOD:
+        if verdict is Verdict.GROW:
             # a model that predicted the decrease within RATIO_EXACT is lightened faster
-            factor = 0.5 if abs(ratio - 1.0) > RATIO_EXACT else LIGHTEN_EXACT
-            state.weight = max(state.weight * factor, self.options.weight_trust_region_min)
+            state.trust.lengthen(2.0 if abs(ratio - 1.0) > RATIO_EXACT else 1.0 / LIGHTEN_EXACT)
         self.accepted_costs.append(self.objective_value(proposal.reference))
-        floor = self.options.weight_trust_region_min
         small, probe = self.probe.judge(
             pending.small_step,
             self._settled(),
             defect_ok,
-            can_lighten=not self.holding and state.weight > floor,
+            can_lighten=not self.holding and not state.trust.at_longest,
         )
         if probe:
             # small only because the trust weight holds it: lighten the weight and go on, so
             # that a converged step is one the trust penalty no longer shapes
-            state.weight = max(state.weight / PROBE_FACTOR, floor)
+            state.trust.lengthen(PROBE_FACTOR)
         if self.holding and (pending.virtual <= HOLD_RELEASE or small):
             self.holding, small = False, False  # feasible at the guessed time: free it
         return self._accept(proposal, pending, small)
@@ -716,7 +725,7 @@ class HpScp:
             record.extra["between_points"] = "on"
             self.accepted_costs.clear()
             self.probe.reset()
-            self.state.weight = max(self.state.weight, REFINED_TRUST_WEIGHT)
+            self.state.trust.at_most_as_long_as(REFINED_TRUST_WEIGHT)
             return scp.Judgement(accepted=True, small=False, virtual_control=pending.virtual)
         if self.options.mesh == "adaptive" and small:
             assessment = assess(self.problem, proposal.reference, self.units.z, self.options)
@@ -726,7 +735,7 @@ class HpScp:
                 mesh = new.pattern.mesh
                 # the new points' defects make the first steps on a new mesh long ones: a
                 # weight left at its floor is rejected many times before it recovers
-                self.state.weight = max(self.state.weight, REFINED_TRUST_WEIGHT)
+                self.state.trust.at_most_as_long_as(REFINED_TRUST_WEIGHT)
                 self.accepted_costs.clear()  # the settling test starts again on the new mesh
                 self.probe.reset()
                 record.extra["mesh_refined"] = {
