@@ -103,9 +103,24 @@ exact L1 penalty needs a weight above the multipliers (Nocedal & Wright, Numeric
 Optimization, thm. 17.3); the margin keeps it exact between iterations."""
 MERIT_FLOOR = 1.0e-3
 """The merit's smallest penalty weight, as a share of the subproblem's weight."""
+PHASE_WINDOW, PHASE_PROGRESS = 20, 0.9
+"""A tie-breaking phase whose infeasibility, over its last ``PHASE_WINDOW`` accepted steps, fell
+to no less than ``PHASE_PROGRESS`` of itself makes no progress: it ends on the converged answer
+it started from, whose flight the result then reports."""
 STALL_ITERATIONS, STALL_SHARE = 10, 1.0e-4
 """An infeasibility above ``FEASIBLE`` whose sum stayed within this share of itself over this
 many accepted steps has stalled: the run ends infeasible instead of spending its budget."""
+
+
+@dataclass(frozen=True)
+class _Converged:
+    """The converged answer a tie-breaking phase starts from (``_breaks_ties``): its reference,
+    linearization, largest virtual control and record."""
+
+    reference: ChebIterate
+    lin: ChebLinearization
+    virtual: float
+    record: IterationRecord
 
 
 @dataclass
@@ -171,6 +186,10 @@ class ChebScvx:
         """The L1 penalty weight of the ratio test's merit (``merit_weight_of``)."""
         self.objective_bound: float | None = None
         """In the tie-breaking phase: the converged objective, which the answer keeps."""
+        self.converged: _Converged | None = None
+        """In the tie-breaking phase: the converged answer it started from."""
+        self.phase_trail: list[float] = []
+        """In the tie-breaking phase: the infeasibility of each accepted step."""
         self.infeasibility_trail: list[float] = []
         """The sum of the scaled violations of each accepted candidate, in order (``stalled``)."""
         self._order = self._collocation_order()
@@ -475,12 +494,63 @@ class ChebScvx:
         if small and self.objective_bound is None and self._breaks_ties(pend.lin, proposal, record):
             small, stalled = False, None  # converged, unflyable: the tie-breaking phase
             self.infeasibility_trail.clear()
+            self.converged = _Converged(proposal.reference, pend.lin, pend.virtual, record)
+        ended = self._tie_breaking_ended(record, small, stalled)
+        if ended is not None:
+            return ended
         return scp.Judgement(
             True,
             small=small,
             virtual_control=pend.virtual,
             linearization=pend.lin,
             stalled=stalled,
+        )
+
+    def _tie_breaking_ended(
+        self, record: IterationRecord, small: bool, stalled: str | None
+    ) -> scp.Judgement[ChebIterate, ChebLinearization] | None:
+        """The return to the converged answer when the tie-breaking phase has stalled or makes
+        no progress (``PHASE_WINDOW``; None while it goes on): the run ends converged there, and
+        the result reports how that answer flies, not an infeasibility of the phase's own
+        rows. The last record then carries the kept answer's virtual control,
+        relaxation gap and defect (the phase's own under ``extra.phase``): the result judges
+        and diagnoses the reported answer by them."""
+        start = self.converged
+        if start is None or small or record is start.record:
+            return None
+        trail = self.phase_trail
+        trail.append(float(record.extra["infeasibility"]))
+        progressing = (
+            len(trail) <= PHASE_WINDOW or trail[-1] < PHASE_PROGRESS * trail[-1 - PHASE_WINDOW]
+        )
+        if stalled is None and progressing:
+            return None
+        why = (
+            "stalled"
+            if stalled is not None
+            else (
+                f"its infeasibility {trail[-1]:.3g} against {trail[-1 - PHASE_WINDOW]:.3g} "
+                f"{PHASE_WINDOW} accepted steps before"
+            )
+        )
+        record.extra["tie_breaking_ended"] = (
+            f"{why}: the converged answer of iteration {start.record.iteration} is kept"
+        )
+        kept = start.record
+        record.extra["phase"] = {
+            "virtual_control_norm": record.virtual_control_norm,
+            "relaxation_gap": record.relaxation_gap,
+            "linearization_error": record.linearization_error,
+        }
+        record.virtual_control_norm = kept.virtual_control_norm
+        record.relaxation_gap = kept.relaxation_gap
+        record.linearization_error = kept.linearization_error
+        return scp.Judgement(
+            True,
+            small=True,
+            virtual_control=start.virtual,
+            reference=start.reference,
+            linearization=start.lin,
         )
 
     def _breaks_ties(
