@@ -231,17 +231,31 @@ class HistoryRecord(BaseModel):
         None, description="Largest change of each state over the nodes (SI units, degrees)."
     )
     trust_region_slack: Number = Field(
-        None, description="Sum of squared scaled state changes (paper 000 eq. 31's t_i; 1)."
+        None,
+        description="The step's squared length in the method's trust units (paper 000 eq. 31's "
+        "t_i; 1): the sum of the squared scaled changes of the variables its trust region "
+        "bounds (the trust region's own size is in extra: weight_trust_region, trust_radius, "
+        "trust_weight or trust_box).",
     )
-    virtual_control_norm: Number = Field(None, description="Norm of the virtual control (1).")
+    virtual_control_norm: Number = Field(
+        None,
+        description="L1 norm of the step's virtual control and buffers, scaled (1); a "
+        "converged answer has none.",
+    )
     linearization_error: Number = Field(
-        None, description="Largest |f - f_L| over nodes and states (nondimensional)."
+        None,
+        description="Largest dynamics defect the step leaves: the candidate's nodes against "
+        "the nonlinear dynamics (the error of the step's linear model), trust units (1).",
     )
     nodes_post_corrected: int | None = Field(
-        None, description="(node, state) pairs whose step was shortened (count)."
+        None,
+        description="energy-scp: (node, state) pairs whose step was shortened (count); null "
+        "for the other methods.",
     )
     relaxation_gap: Number = Field(
-        None, description="Largest 1 - |u| over nodes (0 when the control cone is tight; 1)."
+        None,
+        description="Largest gap of a relaxed control cone (energy-scp: 1 - |u|; cheb-scvx: "
+        "u3 - u1^2 - u2^2; 0 when tight; 1); null for methods without one.",
     )
     conic_status: str | None = Field(None, description='The conic solver\'s status, "optimal".')
     conic_solver: str | None = Field(None, description="The conic solver used, e.g. clarabel.")

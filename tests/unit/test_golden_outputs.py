@@ -15,8 +15,9 @@ for). On another processor the same code is checked on what rounding moves littl
 failure code and the verification's verdict equal, the iteration count within
 ``PORTABLE_ITERATIONS``, and the objective within ``PORTABLE_RTOL``. The SCP iterations carry an
 ulp into the later digits and a convergence test met one iteration earlier or later ends at
-another point within the stopping tolerance; measured on the cases, between the recording
-machine (Rocket Lake, AVX-512) and a Zen 3 machine (AVX2): every status, code and verdict equal,
+another point within the stopping tolerance; measured on the cases, between a Rocket Lake
+machine (AVX-512, where they were first recorded) and a Zen 3 machine (AVX2, where they are
+recorded now): every status, code and verdict equal,
 shuttle-max-crossrange 25 against 27 iterations and its crossrange
 2.6e-4 apart (34.1302 against 34.1391 deg; Betts' 34.1412), shuttle-skip-min-propellant's
 (failed) objective 1.2e-4 apart; the other 15 objectives within 5e-8.

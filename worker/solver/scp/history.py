@@ -17,11 +17,11 @@ class IterationRecord:
     cost_terms: dict[str, float]
     objective_value: float | None  # the problem's own objective on the new reference, SI units
     max_state_change: dict[str, float]  # per state, SI/degrees
-    trust_region_slack: float  # sum of squared scaled state changes (paper 000 eq. 31's t_i)
-    virtual_control_norm: float
-    linearization_error: float  # largest |f - f_L| over nodes and states (nondimensional)
-    nodes_post_corrected: int  # (node, state) pairs whose step was shortened (paper 000 sec. 3.4)
-    relaxation_gap: float  # largest 1 - |u| over nodes (0 when the control cone is tight)
+    trust_region_slack: float  # the step's squared length in the method's trust units
+    virtual_control_norm: float  # L1 norm of the step's virtual control and buffers (scaled)
+    linearization_error: float  # largest dynamics defect the step leaves (trust units)
+    nodes_post_corrected: int | None  # energy-scp's shortened (node, state) pairs, else None
+    relaxation_gap: float | None  # largest gap of a relaxed control cone, else None
     conic_status: str
     conic_solver: str
     conic_solve_s: float

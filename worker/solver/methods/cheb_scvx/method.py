@@ -414,10 +414,10 @@ class ChebScvx:
             cost_terms={**terms, "final_time_s": float(np.sum(new.T)) * sc.time_s},
             objective_value=None,
             max_state_change=POINT_MASS.deltas_to_si(change, sc),
-            trust_region_slack=float(self.trust.size),
+            trust_region_slack=self._squared_step(dy, new.u - reference.u, dT),
             virtual_control_norm=float(np.sum(np.abs(x[self.cols.nu : self.cols.slack]))),
             linearization_error=float(np.max(np.abs(lin.defects) / self.units.y)),
-            nodes_post_corrected=0,
+            nodes_post_corrected=None,
             relaxation_gap=gap,
             subproblem_cost=predicted,
             extra={
@@ -440,6 +440,12 @@ class ChebScvx:
         )
         self.pending = _Pending(lin, cost, predicted, small, virtual)
         return scp.Proposal(new, record)
+
+    def _squared_step(self, dy: Array, du: Array, dT: Array) -> float:
+        """The step's squared length in trust units (states, lift vector, durations)."""
+        u = self.units
+        parts = (dy / u.y[None, :], du / u.u[None, :], dT / u.t)
+        return float(sum(np.sum(p**2) for p in parts))
 
     def model_cost(self, reference: ChebIterate, lin: ChebLinearization, x: Array) -> float:
         """The merit of step ``x`` as the subproblem models it: the linearized objective and the
@@ -565,7 +571,7 @@ class ChebScvx:
         it, smooth = proposal.reference, self.options.weight_lift_smoothing
         manifold = (
             self.options.lift_manifold
-            and record.relaxation_gap > GAP_SWITCH
+            and (record.relaxation_gap or 0.0) > GAP_SWITCH
             and self._drifts(it, lin, record)
         )
         if not (manifold or smooth) or self.flies(it, record):

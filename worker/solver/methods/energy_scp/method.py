@@ -352,7 +352,7 @@ class EnergyScp:
             self.corrected_from = iteration + 1
             verdict.small = small = False
             proposal.record.extra["defect_correction"] = True
-        if small and proposal.record.relaxation_gap > GAP_TOL:
+        if small and (proposal.record.relaxation_gap or 0.0) > GAP_TOL:
             # converged inside the disc: the relaxation is not exact, so the lift it flies is
             # not the vehicle's; continue from the bank that flies the same vertical lift
             verdict.small = small = False

@@ -286,7 +286,18 @@ class FohPtr:
         values = self.lin.objective.values(new.z, new.s, heat_load=candidate[0].heat_load)
         step = np.concatenate([new.dz.ravel(), new.dw.ravel()])
         record, small, virtual = iteration_record(
-            self, iteration, reference, new, data, ratio, report, values, solution, lin_s, step
+            self,
+            iteration,
+            reference,
+            new,
+            data,
+            candidate[0],
+            ratio,
+            report,
+            values,
+            solution,
+            lin_s,
+            step,
         )
         self.pending = _Pending(
             linearization=candidate,

@@ -24,6 +24,7 @@ def iteration_record(
     reference: FohIterate,
     new: Any,
     data: SubproblemData,
+    candidate: SubproblemData,
     ratio: Array,
     report: dict[str, Any],
     values: dict[str, float],
@@ -32,7 +33,8 @@ def iteration_record(
     step: Array,
 ) -> tuple[IterationRecord, bool, float]:
     """The record of the step ``new`` (the unpacked solution) made about ``reference`` by the
-    subproblem of ``data``; whether the step is below the stop tolerances, and its
+    subproblem of ``data`` (``candidate``: the linearization about the step's nodes, whose
+    defect is the step's); whether the step is below the stop tolerances, and its
     virtual-control norm (scaled units)."""
     o, sub, lin = method.options, method.sub, method.lin
     sc = method.problem.scales
@@ -66,9 +68,9 @@ def iteration_record(
         max_state_change=lin.layout.deltas_to_si(change, sc),
         trust_region_slack=tr_slack,
         virtual_control_norm=vc_norm,
-        linearization_error=defect(data, method.scale)[1],
-        nodes_post_corrected=0,
-        relaxation_gap=0.0,
+        linearization_error=defect(candidate, method.scale)[1],
+        nodes_post_corrected=None,
+        relaxation_gap=None,
         **solver_fields(solution),
         extra={
             "max_interval_change_s": change_s * sc.time_s,

@@ -641,8 +641,8 @@ class HpScp:
             trust_region_slack=float(np.sum(x[: self.cols.steps] ** 2)),
             virtual_control_norm=float(np.sum(slack)),
             linearization_error=defect,
-            nodes_post_corrected=0,
-            relaxation_gap=0.0,
+            nodes_post_corrected=None,
+            relaxation_gap=None,
             subproblem_cost=predicted,
             extra={
                 "trust_weight": self.state.trust.size,
@@ -675,7 +675,7 @@ class HpScp:
         candidate = self.penalized(proposal.reference, pending.linearization)
         step = step_ratio(state.cost, candidate, pending.predicted, PREDICTED_FLOOR)
         ratio, predicted, verdict = step.value, step.predicted, RATIO.verdict(step.value)
-        record.extra["ratio"] = ratio
+        record.extra.update(step.describe())
         defect_ok = record.linearization_error <= self.options.defect_tolerance
         if self.options.acceptance == "always":
             return self._accept(proposal, pending, pending.small_step and defect_ok)

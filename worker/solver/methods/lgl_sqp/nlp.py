@@ -456,6 +456,12 @@ class PhasedNlp:
             points=points,
         )
 
+    def largest_defect(self, ev: Evaluation) -> float:
+        """The largest dynamics row of ``ev`` in absolute value (scaled units)."""
+        dyn = np.array([k != "end" for k in self.eq_info.kind])
+        eq = np.abs(ev.eq[dyn])
+        return float(np.max(eq)) if eq.size else 0.0
+
     def violation(self, ev: Evaluation) -> tuple[float, float]:
         """(l1 of the dynamics rows, l1 of the end and path rows' excess)."""
         dyn = np.array([k != "end" for k in self.eq_info.kind])

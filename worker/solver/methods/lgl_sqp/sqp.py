@@ -73,6 +73,8 @@ class SqpIteration:
     violation_conditions: float
     max_violation: float
     step: float  # largest scaled step component of the QP
+    squared_step: float  # the QP step's squared length (scaled units)
+    largest_defect: float  # the largest dynamics row at the iteration's point (scaled units)
     step_length: float
     penalty: float
     trust: float
@@ -268,7 +270,8 @@ def solve_sqp(
             lam_eq, lam_in = y_eq, y_in
             out.iterations.append(
                 _record(it, ev, phi0, (viol_dyn, viol_cond, max_viol), step, 0.0, rho, trust, sol,
-                        elastic, True, z, t_it, settings.line_search)
+                        elastic, True, z, t_it, settings.line_search,
+                        (float(d @ d), nlp.largest_defect(ev)))
             )  # fmt: skip
             if on_iteration is not None:
                 on_iteration(out.iterations[-1], ev)
@@ -337,7 +340,8 @@ def solve_sqp(
         largest = nlp.describe_variable(int(np.argmax(np.abs(d)))) if d.size else ""
         out.iterations.append(
             _record(it, ev, _merit(nlp, ev, rho, weights), now, step, alpha if accepted else 0.0,
-                    rho, trust, sol, elastic, accepted, z, t_it, settings.line_search)
+                    rho, trust, sol, elastic, accepted, z, t_it, settings.line_search,
+                    (float(d @ d), nlp.largest_defect(ev)))
         )  # fmt: skip
         out.iterations[-1].largest_step_at = largest
         if on_iteration is not None:
@@ -355,8 +359,10 @@ def solve_sqp(
 def _record(
     it: int, ev: Evaluation, merit: float, violations: tuple[float, float, float], step: float,
     alpha: float, rho: float, trust: float, sol: Any, elastic: float, accepted: bool, z: Array,
-    t_it: float, line_search: str,
+    t_it: float, line_search: str, sizes: tuple[float, float],
 ) -> SqpIteration:  # fmt: skip
+    """The iteration's record; ``sizes``: the QP step's squared length and the largest dynamics
+    row at the point the iteration ends on."""
     viol_dyn, viol_cond, max_viol = violations
     return SqpIteration(
         iteration=it,
@@ -366,6 +372,8 @@ def _record(
         violation_conditions=viol_cond,
         max_violation=max_viol,
         step=step,
+        squared_step=sizes[0],
+        largest_defect=sizes[1],
         step_length=alpha,
         penalty=rho,
         trust=trust,
