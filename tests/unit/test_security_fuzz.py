@@ -22,6 +22,7 @@ from fastapi.testclient import TestClient  # noqa: E402
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from schemathesis import checks as st_checks  # noqa: E402
+from schemathesis.config import OperationConfig  # noqa: E402
 from sqlalchemy import delete  # noqa: E402
 
 from app.auth import create_key  # noqa: E402
@@ -116,8 +117,18 @@ def running(tmp_path_factory: pytest.TempPathFactory) -> Iterator[App]:
     app.client.__exit__(None, None, None)
 
 
+NO_BOUNDARY_CASES = OperationConfig.from_dict(
+    {"include-name": "POST /v1/jobs", "phases": {"coverage": {"enabled": False}}}
+)
+"""The coverage phase sends every boundary case of a request body's schema (thousands for a
+problem document). POST /v1/problems/validate and POST /v1/jobs take the same body through the
+same validation, so the boundary cases run once, against validate; job submission keeps its
+generated and stateful cases (what it adds to validation: storage and dispatch)."""
+
+
 def _schema(app: App) -> Any:
     schema = schemathesis.openapi.from_asgi("/openapi.json", app.app)
+    schema.config.operations.operations.append(NO_BOUNDARY_CASES)
     # An event stream of a queued job stays open until the job ends, which a fuzzer cannot
     # wait for; the streams are tested in test_service_api. /metrics is plain text.
     return schema.exclude(path_regex=r".*/events$").exclude(path="/metrics")
