@@ -13,8 +13,9 @@ RANGE_OBJECTIVES = frozenset(
     {"max_final_latitude", "min_final_latitude", "max_final_longitude", "min_final_longitude"}
 )
 """Objectives on where the flight ends: the turn direction and the bank-sign choices along the
-way give separate local optima (Betts' Shuttle from a 60 deg heading: cheb-scvx converges to a
-verified 62.40 deg of final latitude, lgl-sqp and the NLP reference to 63.906 deg)."""
+way give separate local optima (Betts' Shuttle from a 60 deg heading: cheb-scvx once converged
+to a verified 62.40 deg of final latitude, lgl-sqp and the NLP reference to 63.906 deg;
+docs/problem-contract.md)."""
 SKIP_OBJECTIVES = frozenset({"min_heat_load"})
 """Objectives whose answers may skip, each skip's depth a choice between separate local optima
 (the user-problem suite's RLV heat load 015 has a shallow-skip and a deep-skip optimum,

@@ -34,8 +34,8 @@ MIN_ATTEMPT_S = 1.0
 first attempt has the whole budget)."""
 MAX_CROSS_CHECK_RUNS = 2
 """Most methods run for a cross-check: the next after the answer's, and one more when that one
-fails (Betts' Shuttle from a 60 deg heading: hp-scp stops at its iteration limit, lgl-sqp then
-finds the better optimum)."""
+fails (Betts' Shuttle from a 60 deg heading, when cheb-scvx answered it: hp-scp stopped at its
+iteration limit, lgl-sqp then found the better optimum; docs/problem-contract.md)."""
 
 
 class SolveOne(Protocol):
