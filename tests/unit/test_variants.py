@@ -47,16 +47,18 @@ def golden_twin(variant: Variant) -> str | None:
     return variant.scenario if _unhurried(twin) == _unhurried(variant.raw_document()) else None
 
 
+VARIANTS = variants()
+TWIN_OF = {v.name: golden_twin(v) for v in VARIANTS}
 CASES = [
     pytest.param(
         v,
         id=v.name,
         marks=[pytest.mark.xfail(strict=True, reason=v.known_wrong)] if v.known_wrong else [],
     )
-    for v in variants()
-    if not v.bench_only and golden_twin(v) is None
+    for v in VARIANTS
+    if not v.bench_only and TWIN_OF[v.name] is None
 ]
-TWINS = [pytest.param(v, id=v.name) for v in variants() if golden_twin(v) is not None]
+TWINS = [pytest.param(v, id=v.name) for v in VARIANTS if TWIN_OF[v.name] is not None]
 
 
 @pytest.mark.slow
@@ -93,7 +95,7 @@ def test_a_golden_twin_meets_the_variant_reference(variant: Variant) -> None:
     required, verified feasible, and within the band less the golden test's own portable
     tolerance (so that a solve on another processor, held to ``PORTABLE_RTOL`` of the recording,
     is still within 0.3 % of the reference)."""
-    twin = golden_twin(variant)
+    twin = TWIN_OF[variant.name]
     assert twin is not None
     recorded = json.loads((GOLDEN_DATA / f"{twin}.json").read_text())
     if recorded["status"] != "succeeded":
